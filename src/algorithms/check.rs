@@ -1,0 +1,35 @@
+//! Input checks shared by the algorithms: lengths once, then finiteness, naming the joint.
+
+use crate::error::DynamicsError;
+use crate::model::Model;
+use nalgebra::DVector;
+
+/// Checks that `q` has nq finite entries.
+pub(crate) fn check_q(model: &Model, q: &DVector<f64>) -> Result<(), DynamicsError> {
+    check(model, q, "q", model.nq(), |m, k| m.joint_of_q(k))
+}
+
+/// Checks that a velocity-sized vector (`v`, `a`, `tau`) has nv finite entries.
+pub(crate) fn check_v(model: &Model, x: &DVector<f64>, what: &'static str) -> Result<(), DynamicsError> {
+    check(model, x, what, model.nv(), |m, k| m.dof_joint(k))
+}
+
+fn check(
+    model: &Model,
+    x: &DVector<f64>,
+    what: &'static str,
+    expected: usize,
+    owner: impl Fn(&Model, usize) -> usize,
+) -> Result<(), DynamicsError> {
+    if x.len() != expected {
+        return Err(DynamicsError::DimensionMismatch { what, expected, got: x.len() });
+    }
+    match x.iter().position(|e| !e.is_finite()) {
+        None => Ok(()),
+        Some(index) => Err(DynamicsError::NonFinite {
+            what,
+            index,
+            joint: model.joint_name(owner(model, index)).to_string(),
+        }),
+    }
+}

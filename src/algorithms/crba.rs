@@ -1,0 +1,49 @@
+//! Composite rigid-body algorithm (Featherstone, RBDA §6.2): the joint-space mass matrix
+//! `M(q)`, with `M_ij = S_iᵀ Iᶜ_i S_j` for j an ancestor of i, where `Iᶜ_i` is the composite
+//! inertia of the subtree at i. Columns are formed in world coordinates so that each entry is
+//! one 6-D dot product `M_kj = J_jᵀ (⁰X*_i Iᶜ_i S_k)` (Pinocchio's variant).
+
+use super::check::check_q;
+use super::kinematics::joint_step;
+use crate::data::Data;
+use crate::error::DynamicsError;
+use crate::model::{Model, NO_DOF};
+use nalgebra::{DMatrix, DVector};
+
+/// Computes the full symmetric mass matrix `M(q)` (kg, kg·m, kg·m²) into `data.mass_matrix` and
+/// returns it. Also leaves body poses in `data.x_wb` and joint Jacobian columns in `data.j_world`.
+pub fn crba<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &DVector<f64>,
+) -> Result<&'d DMatrix<f64>, DynamicsError> {
+    check_q(model, q)?;
+    for i in 1..model.nbodies() {
+        joint_step(model, data, q, i);
+        let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
+        data.x_wb[i] = data.x_wb[p] * data.x_pb[i];
+        for k in iv..iv + nv {
+            data.j_world[k] = data.x_wb[i].act_motion(&data.s[k]);
+        }
+        data.ycrb[i] = model.inertias[i];
+    }
+    for i in (1..model.nbodies()).rev() {
+        let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
+        let ycrb = data.ycrb[i];
+        for k in iv..iv + nv {
+            let f_world = data.x_wb[i].act_force(&ycrb.mul_motion(&data.s[k]));
+            let mut m = k;
+            while m != NO_DOF {
+                let value = data.j_world[m].dot(&f_world);
+                data.mass_matrix[(m, k)] = value;
+                data.mass_matrix[(k, m)] = value;
+                m = model.dof_parent[m];
+            }
+        }
+        if p != 0 {
+            let moved = ycrb.transformed(&data.x_pb[i]);
+            data.ycrb[p] += moved;
+        }
+    }
+    Ok(&data.mass_matrix)
+}

@@ -1,0 +1,93 @@
+//! Tree-sparse factorization of the mass matrix (Featherstone, RBDA §6.5, "LTDL"):
+//! `M = Lᵀ D L` with L unit lower triangular and non-zero only where the column's dof is an
+//! ancestor of the row's dof. Costs O(n d²) for tree depth d and fills in nothing.
+
+use super::check::{check_q, check_v};
+use super::{crba, nonlinear_effects};
+use crate::data::Data;
+use crate::error::DynamicsError;
+use crate::model::{Model, NO_DOF};
+use nalgebra::DVector;
+
+/// Relative size below which a pivot of the factorization counts as zero.
+const PIVOT_TOLERANCE: f64 = 1e-12;
+
+/// Factors `data.mass_matrix` (from [`crba`]) into `data.mass_matrix_factor`. A joint whose
+/// subtree cannot move gives [`DynamicsError::SingularMassMatrix`].
+pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), DynamicsError> {
+    let h = &mut data.mass_matrix_factor;
+    h.copy_from(&data.mass_matrix);
+    let lambda = &model.dof_parent;
+    for k in (0..model.nv()).rev() {
+        let pivot = h[(k, k)];
+        if !(pivot > PIVOT_TOLERANCE * data.mass_matrix[(k, k)]) || pivot <= 0.0 {
+            return Err(DynamicsError::SingularMassMatrix {
+                joint: model.joint_name(model.dof_joint(k)).to_string(),
+            });
+        }
+        let mut i = lambda[k];
+        while i != NO_DOF {
+            let a = h[(k, i)] / pivot;
+            let mut j = i;
+            while j != NO_DOF {
+                h[(i, j)] -= a * h[(k, j)];
+                j = lambda[j];
+            }
+            h[(k, i)] = a;
+            i = lambda[i];
+        }
+    }
+    Ok(())
+}
+
+/// Solves `M x = b` in place (`x` holds b on entry) with the factor of [`factor_mass_matrix`].
+pub fn solve_mass_matrix(model: &Model, data: &Data, x: &mut DVector<f64>) {
+    let h = &data.mass_matrix_factor;
+    let lambda = &model.dof_parent;
+    let n = model.nv();
+    for i in (0..n).rev() {
+        let xi = x[i];
+        let mut j = lambda[i];
+        while j != NO_DOF {
+            x[j] -= h[(i, j)] * xi;
+            j = lambda[j];
+        }
+    }
+    for i in 0..n {
+        x[i] /= h[(i, i)];
+    }
+    for i in 0..n {
+        let mut j = lambda[i];
+        let mut xi = x[i];
+        while j != NO_DOF {
+            xi -= h[(i, j)] * x[j];
+            j = lambda[j];
+        }
+        x[i] = xi;
+    }
+}
+
+/// Forward dynamics by CRBA and the tree-sparse factorization:
+/// `q̈ = M(q)⁻¹ (τ − C(q, v) v − g(q))`, written to `data.ddq` and returned. Slower than
+/// [`super::aba`] for long chains, but it leaves `M` and its factor in `data` for the
+/// constraint solvers.
+pub fn forward_dynamics_crba<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    tau: &DVector<f64>,
+) -> Result<&'d DVector<f64>, DynamicsError> {
+    check_q(model, q)?;
+    check_v(model, v, "v")?;
+    check_v(model, tau, "tau")?;
+    crba(model, data, q)?;
+    factor_mass_matrix(model, data)?;
+    nonlinear_effects(model, data, q, v)?;
+    let mut ddq = std::mem::take(&mut data.ddq);
+    ddq.copy_from(tau);
+    ddq -= &data.nle;
+    solve_mass_matrix(model, data, &mut ddq);
+    data.ddq = ddq;
+    Ok(&data.ddq)
+}

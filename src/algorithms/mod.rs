@@ -1,0 +1,19 @@
+//! Rigid-body algorithms: free functions over `(&Model, &mut Data, …)`, one file each. Each checks
+//! its inputs once (lengths, finiteness) and then runs without allocating.
+
+mod aba;
+mod check;
+mod crba;
+mod energy;
+mod factor;
+mod jacobian;
+mod kinematics;
+mod rnea;
+
+pub use aba::aba;
+pub use crba::crba;
+pub use energy::{center_of_mass, kinetic_energy, potential_energy};
+pub use factor::{factor_mass_matrix, forward_dynamics_crba, solve_mass_matrix};
+pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
+pub use kinematics::{forward_kinematics, frame_placement};
+pub use rnea::{generalized_gravity, nonlinear_effects, rnea};

@@ -1,0 +1,95 @@
+//! Every buffer the algorithms write, sized once for a model.
+
+use crate::math::{Force, Mat6, Motion, SpatialInertia, Transform, Vec3, Vec6};
+use crate::model::Model;
+use nalgebra::{DMatrix, DVector};
+
+/// Work space and results of the algorithms for one [`Model`]. [`Data::new`] allocates every
+/// buffer; no algorithm allocates afterwards. Per-body vectors have `nbodies` entries (index 0 the
+/// universe), per-dof vectors `nv`.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// Pose of each body in its parent body's frame, `x_pb = placement · x_jc(q)`.
+    pub x_pb: Vec<Transform>,
+    /// Pose of each body in the world, `x_wb`.
+    pub x_wb: Vec<Transform>,
+    /// Spatial velocity of each body, in its own frame.
+    pub v: Vec<Motion>,
+    /// Spatial acceleration of each body, in its own frame (RNEA: including the fictitious
+    /// upward acceleration −g that accounts for gravity).
+    pub a: Vec<Motion>,
+    /// Spatial force transmitted by each body's joint, in the body frame (RNEA).
+    pub f: Vec<Force>,
+    /// Joint bias `cJ` of each body's joint, in the body frame.
+    pub c_j: Vec<Motion>,
+    /// Motion subspace column of each dof, in its body's frame.
+    pub s: Vec<Motion>,
+    /// Column of each dof in world coordinates (about the world origin): the joint Jacobian.
+    pub j_world: Vec<Motion>,
+    /// Composite rigid-body inertia of each subtree, in the body frame (CRBA).
+    pub ycrb: Vec<SpatialInertia>,
+    /// Articulated-body inertia, in the body frame (ABA).
+    pub ia: Vec<Mat6>,
+    /// Articulated bias force, in the body frame (ABA).
+    pub pa: Vec<Force>,
+    /// `U = Iᴬ S` per dof (ABA).
+    pub u: Vec<Vec6>,
+    /// `D⁻¹ = (Sᵀ Iᴬ S)⁻¹` per body, top-left nv×nv block used (ABA).
+    pub d_inv: Vec<Mat6>,
+    /// `u = τ − Sᵀ pᴬ` per dof (ABA).
+    pub u_bias: DVector<f64>,
+    /// Joint forces from [`crate::algorithms::rnea`] (N·m or N).
+    pub tau: DVector<f64>,
+    /// Nonlinear effects `C(q, v) v + g(q)` from [`crate::algorithms::nonlinear_effects`].
+    pub nle: DVector<f64>,
+    /// Generalized gravity `g(q)` from [`crate::algorithms::generalized_gravity`].
+    pub gravity_torque: DVector<f64>,
+    /// Generalized acceleration from [`crate::algorithms::aba`] or
+    /// [`crate::algorithms::forward_dynamics_crba`].
+    pub ddq: DVector<f64>,
+    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`].
+    pub mass_matrix: DMatrix<f64>,
+    /// Tree-sparse `Lᵀ D L` factor of `M` (unit L below the diagonal, D on it).
+    pub mass_matrix_factor: DMatrix<f64>,
+    /// A 6×nv frame Jacobian, output of [`crate::algorithms::frame_jacobian`].
+    pub jacobian: DMatrix<f64>,
+    /// Centre of mass in the world (m).
+    pub com: Vec3,
+    /// Kinetic energy (J).
+    pub kinetic_energy: f64,
+    /// Potential energy in gravity, zero at the world origin (J).
+    pub potential_energy: f64,
+}
+
+impl Data {
+    /// Allocates every buffer for `model`.
+    pub fn new(model: &Model) -> Self {
+        let (n, nv) = (model.nbodies(), model.nv());
+        Self {
+            x_pb: vec![Transform::identity(); n],
+            x_wb: vec![Transform::identity(); n],
+            v: vec![Motion::zero(); n],
+            a: vec![Motion::zero(); n],
+            f: vec![Force::zero(); n],
+            c_j: vec![Motion::zero(); n],
+            s: vec![Motion::zero(); nv],
+            j_world: vec![Motion::zero(); nv],
+            ycrb: vec![SpatialInertia::zero(); n],
+            ia: vec![Mat6::zeros(); n],
+            pa: vec![Force::zero(); n],
+            u: vec![Vec6::zeros(); nv],
+            d_inv: vec![Mat6::zeros(); n],
+            u_bias: DVector::zeros(nv),
+            tau: DVector::zeros(nv),
+            nle: DVector::zeros(nv),
+            gravity_torque: DVector::zeros(nv),
+            ddq: DVector::zeros(nv),
+            mass_matrix: DMatrix::zeros(nv, nv),
+            mass_matrix_factor: DMatrix::zeros(nv, nv),
+            jacobian: DMatrix::zeros(6, nv),
+            com: Vec3::zeros(),
+            kinetic_energy: 0.0,
+            potential_energy: 0.0,
+        }
+    }
+}

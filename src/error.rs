@@ -1,0 +1,146 @@
+//! Typed errors, one enum per area. Messages name the body, joint, file or quantity concerned.
+
+use thiserror::Error;
+
+/// An invalid model description, found by [`crate::model::ModelBuilder::build`].
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ModelError {
+    /// Mass negative, NaN or infinite.
+    #[error("body `{body}`: mass {mass} is negative or not finite")]
+    InvalidMass {
+        /// Body name.
+        body: String,
+        /// The offending mass (kg).
+        mass: f64,
+    },
+    /// Centre of mass or inertia tensor contains NaN or infinity.
+    #[error("body `{body}`: centre of mass or inertia tensor is not finite")]
+    NonFiniteInertia {
+        /// Body name.
+        body: String,
+    },
+    /// Rotational inertia not symmetric.
+    #[error("body `{body}`: inertia tensor is not symmetric")]
+    InertiaNotSymmetric {
+        /// Body name.
+        body: String,
+    },
+    /// Rotational inertia has a negative principal moment.
+    #[error(
+        "body `{body}`: inertia tensor is not positive semi-definite (principal moments {moments:?} kg·m²)"
+    )]
+    InertiaNotPositive {
+        /// Body name.
+        body: String,
+        /// Principal moments, ascending (kg·m²).
+        moments: [f64; 3],
+    },
+    /// Principal moments violate `I₁ + I₂ ≥ I₃`: no mass distribution has this inertia.
+    #[error(
+        "body `{body}`: principal moments {moments:?} kg·m² violate the triangle inequality I1 + I2 >= I3"
+    )]
+    InertiaTriangleInequality {
+        /// Body name.
+        body: String,
+        /// Principal moments, ascending (kg·m²).
+        moments: [f64; 3],
+    },
+    /// A joint axis is zero, NaN or infinite.
+    #[error("joint `{joint}`: axis {axis:?} is zero or not finite")]
+    InvalidAxis {
+        /// Joint name.
+        joint: String,
+        /// The axis as given.
+        axis: [f64; 3],
+    },
+    /// The two axes of a universal or hinge2 joint are parallel: one degree of freedom is lost.
+    #[error("joint `{joint}`: its two axes are parallel")]
+    ParallelAxes {
+        /// Joint name.
+        joint: String,
+    },
+    /// A body names a parent that does not exist.
+    #[error("body `{body}`: unknown parent `{parent}`")]
+    UnknownParent {
+        /// Body name.
+        body: String,
+        /// The missing parent's name.
+        parent: String,
+    },
+    /// Two bodies, or two joints, share a name (or a body is called `universe`).
+    #[error("duplicate {what} name `{name}`")]
+    DuplicateName {
+        /// "body" or "joint".
+        what: &'static str,
+        /// The repeated name.
+        name: String,
+    },
+    /// The parent relation has a cycle, so the bodies are not a tree.
+    #[error("body `{body}` lies on a cycle of parents; a kinematic tree has none")]
+    Cycle {
+        /// A body on the cycle.
+        body: String,
+    },
+    /// A placement contains NaN or infinity.
+    #[error("joint `{joint}`: placement is not finite")]
+    NonFinitePlacement {
+        /// Joint name.
+        joint: String,
+    },
+    /// Limits of the wrong length, NaN, or lower above upper.
+    #[error("joint `{joint}`: invalid limits: {reason}")]
+    InvalidLimits {
+        /// Joint name.
+        joint: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// Suspension stiffness or damping negative or not finite.
+    #[error("joint `{joint}`: suspension stiffness and damping must be finite and non-negative")]
+    InvalidSuspension {
+        /// Joint name.
+        joint: String,
+    },
+}
+
+/// An algorithm refused its input or met a singular problem. The output buffers are then
+/// unspecified, but never silently returned as a result.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum DynamicsError {
+    /// An input vector has the wrong length.
+    #[error("{what} has length {got}, the model needs {expected}")]
+    DimensionMismatch {
+        /// Which input ("q", "v", "a", "tau").
+        what: &'static str,
+        /// Length the model needs.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+    /// An input holds NaN or infinity.
+    #[error("{what}[{index}] (joint `{joint}`) is not finite")]
+    NonFinite {
+        /// Which input.
+        what: &'static str,
+        /// Index into it.
+        index: usize,
+        /// Joint owning that index.
+        joint: String,
+    },
+    /// The mass matrix is singular: the subtree below this joint has no mass or inertia to move.
+    #[error("joint `{joint}`: the subtree it moves has no mass or inertia along its motion, so the mass matrix is singular")]
+    SingularMassMatrix {
+        /// Joint name.
+        joint: String,
+    },
+    /// A body or frame index out of range.
+    #[error("index {index} is out of range ({count} {what})")]
+    IndexOutOfRange {
+        /// "bodies" or "frames".
+        what: &'static str,
+        /// Index given.
+        index: usize,
+        /// Number available.
+        count: usize,
+    },
+}

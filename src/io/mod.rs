@@ -1,0 +1,3 @@
+//! Reading and writing models: URDF (with gelenk's extension for universal and hinge2 joints).
+
+pub mod urdf;

@@ -1,0 +1,33 @@
+//! Spatial algebra: typed 6-D motions, forces, rigid-body inertias and rigid transforms.
+//!
+//! Conventions (Pinocchio's, see `conventions.md`):
+//! - spatial vectors put the **linear part first**, the angular part second;
+//! - a [`Motion`] `[v; ω]` "of B expressed in B" is the velocity of the point of B at B's origin
+//!   and B's angular velocity, both in B's axes;
+//! - a [`Transform`] `x_ab` is the pose of frame B in frame A and maps B coordinates to A:
+//!   `p_a = R_ab p_b + t_ab`;
+//! - a [`SpatialInertia`] is about the body frame's origin, in body axes;
+//! - quaternions are stored `(x, y, z, w)`.
+//!
+//! Names carry frames (Drake's monogram notation): `x_wb` is the pose of body B in the world W,
+//! `v_b` a velocity expressed in B, `x_lp` a pose in the parent body's frame.
+
+mod force;
+mod inertia;
+mod motion;
+mod transform;
+
+pub use force::Force;
+pub use inertia::SpatialInertia;
+pub use motion::Motion;
+pub use transform::{exp3, log3, skew, Transform};
+pub(crate) use transform::{quat_exp, quat_log};
+
+/// 3-vector of `f64` (metres, radians, newtons … by context).
+pub type Vec3 = nalgebra::Vector3<f64>;
+/// 3×3 matrix of `f64`.
+pub type Mat3 = nalgebra::Matrix3<f64>;
+/// 6-vector of `f64`, linear part first.
+pub type Vec6 = nalgebra::Vector6<f64>;
+/// 6×6 matrix of `f64`, blocks ordered (linear, angular).
+pub type Mat6 = nalgebra::Matrix6<f64>;

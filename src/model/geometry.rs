@@ -1,0 +1,66 @@
+//! Geometry descriptions attached to bodies (URDF `<collision>` and `<visual>`), kept for the
+//! collision module; dynamics never reads them and never opens a mesh file.
+
+use crate::math::{Transform, Vec3};
+
+/// What a geometry is used for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GeometryRole {
+    /// Collision geometry.
+    Collision,
+    /// Visual geometry.
+    Visual,
+}
+
+/// A shape in its own frame, sizes in metres.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// A box of full side lengths `size`, centred.
+    Box {
+        /// Full side lengths (m).
+        size: Vec3,
+    },
+    /// A cylinder along z, centred.
+    Cylinder {
+        /// Radius (m).
+        radius: f64,
+        /// Length (m).
+        length: f64,
+    },
+    /// A capsule along z, centred: a cylinder of `length` with hemispherical caps.
+    Capsule {
+        /// Radius (m).
+        radius: f64,
+        /// Length of the cylindrical part (m).
+        length: f64,
+    },
+    /// A sphere, centred.
+    Sphere {
+        /// Radius (m).
+        radius: f64,
+    },
+    /// A mesh file, by the URI written in the model (`package://`, relative or absolute path),
+    /// not yet resolved or read.
+    Mesh {
+        /// URI as written.
+        uri: String,
+        /// Scale per axis.
+        scale: Vec3,
+    },
+}
+
+/// A shape attached to a model body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeometrySpec {
+    /// Name of the link that declared it.
+    pub link: String,
+    /// Collision or visual.
+    pub role: GeometryRole,
+    /// The shape.
+    pub shape: Shape,
+    /// Pose of the shape in the declaring link's frame (in a [`super::BodySpec`]) or in the model
+    /// body's frame (in a built [`super::Model`], after fusion).
+    pub placement: Transform,
+    /// Body the shape moves with (set by the builder; 0 = universe).
+    pub body: usize,
+}
