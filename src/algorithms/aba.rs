@@ -100,8 +100,8 @@ pub fn aba<'d>(
         let a_prime = data.x_pb[i].act_inv_motion(&a_parent) + data.c_j[i];
         let a_vec = a_prime.to_vector();
         let mut r = [0.0; 6];
-        for b in 0..nv {
-            r[b] = data.u_bias[iv + b] - data.u[iv + b].dot(&a_vec);
+        for (b, rb) in r.iter_mut().enumerate().take(nv) {
+            *rb = data.u_bias[iv + b] - data.u[iv + b].dot(&a_vec);
         }
         let mut a_i = a_prime;
         for a in 0..nv {
@@ -119,7 +119,7 @@ pub fn aba<'d>(
 fn invert_spd_block(d: &Mat6, n: usize, tolerance: f64) -> Option<Mat6> {
     if n == 1 {
         let mut out = Mat6::zeros();
-        if !(d[(0, 0)] > tolerance) {
+        if d[(0, 0)].is_nan() || d[(0, 0)] <= tolerance {
             return None;
         }
         out[(0, 0)] = 1.0 / d[(0, 0)];
@@ -131,7 +131,7 @@ fn invert_spd_block(d: &Mat6, n: usize, tolerance: f64) -> Option<Mat6> {
         for k in 0..j {
             s -= l[(j, k)] * l[(j, k)];
         }
-        if !(s > tolerance) {
+        if s.is_nan() || s <= tolerance {
             return None;
         }
         l[(j, j)] = s.sqrt();

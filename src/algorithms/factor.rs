@@ -20,7 +20,7 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
     let lambda = &model.dof_parent;
     for k in (0..model.nv()).rev() {
         let pivot = h[(k, k)];
-        if !(pivot > PIVOT_TOLERANCE * data.mass_matrix[(k, k)]) || pivot <= 0.0 {
+        if pivot.is_nan() || pivot <= 0.0 || pivot <= PIVOT_TOLERANCE * data.mass_matrix[(k, k)] {
             return Err(DynamicsError::SingularMassMatrix {
                 joint: model.joint_name(model.dof_joint(k)).to_string(),
             });
