@@ -26,7 +26,7 @@ pub struct Data {
     pub s: Vec<Motion>,
     /// Column of each dof in world coordinates (about the world origin): the joint Jacobian.
     pub j_world: Vec<Motion>,
-    /// Composite rigid-body inertia of each subtree, in the body frame (CRBA).
+    /// Composite rigid-body inertia of each subtree, in world coordinates (CRBA).
     pub ycrb: Vec<SpatialInertia>,
     /// Articulated-body inertia, in the body frame (ABA).
     pub ia: Vec<Mat6>,

@@ -1,7 +1,8 @@
 //! Composite rigid-body algorithm (Featherstone, RBDA §6.2): the joint-space mass matrix
 //! `M(q)`, with `M_ij = S_iᵀ Iᶜ_i S_j` for j an ancestor of i, where `Iᶜ_i` is the composite
-//! inertia of the subtree at i. Columns are formed in world coordinates so that each entry is
-//! one 6-D dot product `M_kj = J_jᵀ (⁰X*_i Iᶜ_i S_k)` (Pinocchio's variant).
+//! inertia of the subtree at i. Inertias and joint columns are taken to world coordinates once,
+//! so that composites add without transforms and each entry is one 6-D dot product
+//! `M_jk = J_jᵀ (⁰Iᶜ_i J_k)` (Pinocchio's world-frame variant).
 
 use super::check::check_q;
 use super::kinematics::joint_step;
@@ -25,13 +26,13 @@ pub fn crba<'d>(
         for k in iv..iv + nv {
             data.j_world[k] = data.x_wb[i].act_motion(&data.s[k]);
         }
-        data.ycrb[i] = model.inertias[i];
+        data.ycrb[i] = model.inertias[i].transformed(&data.x_wb[i]);
     }
     for i in (1..model.nbodies()).rev() {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
         let ycrb = data.ycrb[i];
         for k in iv..iv + nv {
-            let f_world = data.x_wb[i].act_force(&ycrb.mul_motion(&data.s[k]));
+            let f_world = ycrb.mul_motion(&data.j_world[k]);
             let mut m = k;
             while m != NO_DOF {
                 let value = data.j_world[m].dot(&f_world);
@@ -41,8 +42,7 @@ pub fn crba<'d>(
             }
         }
         if p != 0 {
-            let moved = ycrb.transformed(&data.x_pb[i]);
-            data.ycrb[p] += moved;
+            data.ycrb[p] += ycrb;
         }
     }
     Ok(&data.mass_matrix)

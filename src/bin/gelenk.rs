@@ -1,1 +1,274 @@
-fn main() {}
+//! The `gelenk` command-line tool: inspect a model, evaluate its dynamics on given states, and
+//! time the rigid-body algorithms. Errors are printed as one line on stderr with a non-zero exit.
+
+use clap::{Parser, Subcommand};
+use gelenk::prelude::*;
+use nalgebra::DVector;
+use rand::SeedableRng;
+use serde_json::{json, Value};
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "gelenk", version, about = "Multibody dynamics in generalized coordinates")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print the kinematic tree: bodies, joints, masses and index ranges.
+    Inspect {
+        /// URDF file.
+        model: PathBuf,
+        /// Attach the root link by a free joint.
+        #[arg(long)]
+        floating: bool,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Evaluate M, nle, gravity, RNEA, ABA, energies and centre of mass on states from a file.
+    Dynamics {
+        /// URDF file.
+        model: PathBuf,
+        /// Attach the root link by a free joint.
+        #[arg(long)]
+        floating: bool,
+        /// JSON file `{"states":[{"q":[…],"v":[…],"a":[…],"tau":[…]}]}` (v, a, tau default to 0).
+        #[arg(long)]
+        states: PathBuf,
+    },
+    /// Time algorithms in-process (median over rounds, after warm-up).
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Median ns per call of rnea, crba, aba and nle over a pool of random states.
+    Dynamics {
+        /// URDF file.
+        model: PathBuf,
+        /// Attach the root link by a free joint.
+        #[arg(long)]
+        floating: bool,
+        /// Print JSON instead of a table.
+        #[arg(long)]
+        json: bool,
+        /// Timed rounds; the median is reported.
+        #[arg(long, default_value_t = 51)]
+        rounds: usize,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Inspect { model, floating, json } => inspect(&model, floating, json),
+        Command::Dynamics { model, floating, states } => dynamics(&model, floating, &states),
+        Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
+            bench_dynamics(&model, floating, json, rounds)
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("gelenk: error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn load(path: &Path, floating: bool) -> Result<Model, String> {
+    let options = UrdfOptions { floating_base: floating, ..Default::default() };
+    gelenk::io::urdf::load_file(path, &options).map_err(|e| e.to_string())
+}
+
+fn joints_json(model: &Model) -> Vec<Value> {
+    (1..model.nbodies())
+        .map(|i| {
+            json!({
+                "name": model.joint_name(i),
+                "type": model.joint(i).kind_name(),
+                "parent": model.joint_name(model.parent(i)),
+                "idx_q": model.idx_q(i),
+                "nq": model.joint(i).nq(),
+                "idx_v": model.idx_v(i),
+                "nv": model.joint(i).nv(),
+            })
+        })
+        .collect()
+}
+
+fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
+    let model = load(path, floating)?;
+    let massless = model.massless_subtrees();
+    if as_json {
+        let out = json!({"nq": model.nq(), "nv": model.nv(), "mass": model.total_mass(), "joints": joints_json(&model)});
+        println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
+    } else {
+        println!(
+            "model `{}`: {} moving bodies, nq = {}, nv = {}",
+            model.name(),
+            model.nbodies() - 1,
+            model.nq(),
+            model.nv()
+        );
+        println!(
+            "{:<24} {:<24} {:<9} {:<24} {:>10} {:>7} {:>7}",
+            "body", "joint", "kind", "parent", "mass [kg]", "q", "v"
+        );
+        for i in 1..model.nbodies() {
+            let j = model.joint(i);
+            let range = |start: usize, n: usize| format!("{}..{}", start, start + n);
+            println!(
+                "{:<24} {:<24} {:<9} {:<24} {:>10.4} {:>7} {:>7}",
+                model.body_name(i),
+                model.joint_name(i),
+                j.kind_name(),
+                model.body_name(model.parent(i)),
+                model.inertia(i).mass,
+                range(model.idx_q(i), j.nq()),
+                range(model.idx_v(i), j.nv()),
+            );
+        }
+        println!("total mass: {:.6} kg; {} named frames", model.total_mass(), model.frames().len());
+    }
+    for i in massless {
+        eprintln!(
+            "gelenk: warning: joint `{}` moves a subtree without mass or inertia: the mass matrix is singular and forward dynamics will refuse it",
+            model.joint_name(i)
+        );
+    }
+    Ok(())
+}
+
+fn vector(
+    state: &Value,
+    key: &str,
+    len: usize,
+    index: usize,
+    required: bool,
+) -> Result<DVector<f64>, String> {
+    match state.get(key) {
+        None if !required => Ok(DVector::zeros(len)),
+        None => Err(format!("state {index}: missing \"{key}\"")),
+        Some(v) => {
+            let items = v.as_array().ok_or_else(|| format!("state {index}: \"{key}\" is not an array"))?;
+            if items.len() != len {
+                return Err(format!(
+                    "state {index}: \"{key}\" has {} entries, the model needs {len}",
+                    items.len()
+                ));
+            }
+            items
+                .iter()
+                .map(|x| x.as_f64().ok_or_else(|| format!("state {index}: \"{key}\" holds a non-number")))
+                .collect::<Result<Vec<f64>, String>>()
+                .map(DVector::from_vec)
+        }
+    }
+}
+
+fn dynamics(path: &Path, floating: bool, states_path: &Path) -> Result<(), String> {
+    let model = load(path, floating)?;
+    let text = std::fs::read_to_string(states_path)
+        .map_err(|e| format!("{}: cannot read: {e}", states_path.display()))?;
+    let doc: Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: not valid JSON: {e}", states_path.display()))?;
+    let states = doc
+        .get("states")
+        .and_then(Value::as_array)
+        .ok_or_else(|| format!("{}: expected {{\"states\": [...]}}", states_path.display()))?;
+    let mut data = Data::new(&model);
+    let (nq, nv) = (model.nq(), model.nv());
+    let mut results = Vec::with_capacity(states.len());
+    for (k, s) in states.iter().enumerate() {
+        let q = vector(s, "q", nq, k, true)?;
+        let v = vector(s, "v", nv, k, false)?;
+        let a = vector(s, "a", nv, k, false)?;
+        let tau = vector(s, "tau", nv, k, false)?;
+        let fail = |e: DynamicsError| format!("state {k}: {e}");
+        let m = crba(&model, &mut data, &q).map_err(fail)?;
+        let rows: Vec<Vec<f64>> = m.row_iter().map(|r| r.iter().copied().collect()).collect();
+        let nle = nonlinear_effects(&model, &mut data, &q, &v).map_err(fail)?.as_slice().to_vec();
+        let gravity = generalized_gravity(&model, &mut data, &q).map_err(fail)?.as_slice().to_vec();
+        let tau_id = rnea(&model, &mut data, &q, &v, &a).map_err(fail)?.as_slice().to_vec();
+        let ddq = aba(&model, &mut data, &q, &v, &tau).map_err(fail)?.as_slice().to_vec();
+        let ke = kinetic_energy(&model, &mut data, &q, &v).map_err(fail)?;
+        let pe = potential_energy(&model, &mut data, &q).map_err(fail)?;
+        let com = center_of_mass(&model, &mut data, &q).map_err(fail)?;
+        results.push(json!({
+            "mass_matrix": rows, "nle": nle, "gravity": gravity, "rnea": tau_id, "aba": ddq,
+            "kinetic_energy": ke, "potential_energy": pe, "com": [com.x, com.y, com.z],
+            "mass": model.total_mass(),
+        }));
+    }
+    let out = json!({"nq": nq, "nv": nv, "joints": joints_json(&model), "results": results});
+    println!("{}", serde_json::to_string(&out).map_err(|e| e.to_string())?);
+    Ok(())
+}
+
+/// Median nanoseconds per call of `f` over `rounds` rounds of one pass through a pool of states.
+fn median_ns(rounds: usize, pool: usize, mut f: impl FnMut(usize)) -> f64 {
+    let warm = Instant::now();
+    while warm.elapsed().as_millis() < 200 {
+        (0..pool).for_each(&mut f);
+    }
+    let mut per_call: Vec<f64> = (0..rounds.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            (0..pool).for_each(&mut f);
+            start.elapsed().as_nanos() as f64 / pool as f64
+        })
+        .collect();
+    per_call.sort_by(f64::total_cmp);
+    per_call[per_call.len() / 2]
+}
+
+fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> Result<(), String> {
+    let model = load(path, floating)?;
+    let mut data = Data::new(&model);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(42);
+    const POOL: usize = 1000;
+    let mut random_vector =
+        |n: usize| DVector::from_fn(n, |_, _| rand::Rng::random_range(&mut rng, -1.0..1.0));
+    let vs: Vec<DVector<f64>> = (0..POOL).map(|_| random_vector(model.nv())).collect();
+    let accs: Vec<DVector<f64>> = (0..POOL).map(|_| random_vector(model.nv())).collect();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let qs: Vec<DVector<f64>> = (0..POOL).map(|_| model.random_configuration(&mut rng)).collect();
+    // Surface a model that forward dynamics refuses before timing it.
+    aba(&model, &mut data, &qs[0], &vs[0], &accs[0]).map_err(|e| e.to_string())?;
+    let rnea_ns = median_ns(rounds, POOL, |k| {
+        black_box(rnea(&model, &mut data, &qs[k], &vs[k], &accs[k]).ok());
+    });
+    let crba_ns = median_ns(rounds, POOL, |k| {
+        black_box(crba(&model, &mut data, &qs[k]).ok());
+    });
+    let aba_ns = median_ns(rounds, POOL, |k| {
+        black_box(aba(&model, &mut data, &qs[k], &vs[k], &accs[k]).ok());
+    });
+    let nle_ns = median_ns(rounds, POOL, |k| {
+        black_box(nonlinear_effects(&model, &mut data, &qs[k], &vs[k]).ok());
+    });
+    if as_json {
+        println!("{}", json!({"rnea_ns": rnea_ns, "crba_ns": crba_ns, "aba_ns": aba_ns, "nle_ns": nle_ns}));
+    } else {
+        println!(
+            "model `{}` (nq = {}, nv = {}), median of {rounds} rounds over {POOL} random states",
+            model.name(),
+            model.nq(),
+            model.nv()
+        );
+        for (name, ns) in [("rnea", rnea_ns), ("crba", crba_ns), ("aba", aba_ns), ("nle", nle_ns)] {
+            println!("{name:<6} {ns:>10.0} ns/call");
+        }
+    }
+    Ok(())
+}

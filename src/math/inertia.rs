@@ -82,11 +82,17 @@ impl SpatialInertia {
         let r = &x_ab.rotation;
         let t = &x_ab.translation;
         let h_r = r * self.first_moment;
-        let i_r = r * self.inertia_origin * r.transpose();
-        let kt = skew(t);
-        let kh = skew(&h_r);
-        // I_o' = R I_o Rᵀ − ([Rh]×[t]× + [t]×[Rh]× + m [t]×²)
-        let inertia_origin = i_r - (kh * kt + kt * kh + kt * kt * self.mass);
+        // I_o' = R I_o Rᵀ − ([Rh]×[t]× + [t]×[Rh]× + m [t]×²), with [a]×[b]× = b aᵀ − (a·b) 1:
+        //      = R I_o Rᵀ − (t hᵀ + h tᵀ + m t tᵀ) + (2 h·t + m t·t) 1   (h = R h_b)
+        let mut inertia_origin = r * self.inertia_origin * r.transpose();
+        let diag = 2.0 * h_r.dot(t) + self.mass * t.norm_squared();
+        let mt = t * self.mass;
+        for c in 0..3 {
+            for k in 0..3 {
+                inertia_origin[(k, c)] -= t[k] * h_r[c] + h_r[k] * t[c] + mt[k] * t[c];
+            }
+            inertia_origin[(c, c)] += diag;
+        }
         SpatialInertia { mass: self.mass, first_moment: h_r + t * self.mass, inertia_origin }
     }
 

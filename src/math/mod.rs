@@ -20,7 +20,7 @@ mod transform;
 pub use force::Force;
 pub use inertia::SpatialInertia;
 pub use motion::Motion;
-pub use transform::{exp3, log3, skew, Transform};
+pub use transform::{axis_angle, exp3, log3, skew, Transform};
 pub(crate) use transform::{quat_exp, quat_log};
 
 /// 3-vector of `f64` (metres, radians, newtons … by context).

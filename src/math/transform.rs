@@ -37,6 +37,27 @@ pub fn exp3(w: &Vec3) -> Mat3 {
     Mat3::identity() + k * a + k * k * b
 }
 
+/// Rotation by `angle` radians about the unit vector `axis` (Rodrigues' formula written out:
+/// `R = cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`), cheaper than [`exp3`] when the axis is known.
+#[inline]
+pub fn axis_angle(axis: &Vec3, angle: f64) -> Mat3 {
+    let (s, c) = angle.sin_cos();
+    let t = 1.0 - c;
+    let (x, y, z) = (axis.x, axis.y, axis.z);
+    let (tx, ty, tz) = (t * x, t * y, t * z);
+    Mat3::new(
+        tx * x + c,
+        tx * y - s * z,
+        tx * z + s * y,
+        tx * y + s * z,
+        ty * y + c,
+        ty * z - s * x,
+        tx * z - s * y,
+        ty * z + s * x,
+        tz * z + c,
+    )
+}
+
 /// The SO(3) logarithm: the rotation vector `w` with `exp3(w) = r` and `|w| ≤ π`.
 pub fn log3(r: &Mat3) -> Vec3 {
     let q = UnitQuaternion::from_matrix(r);
@@ -196,6 +217,8 @@ mod tests {
             assert_relative_eq!(log3(&r), w, epsilon = 1e-12);
             let q = quat_exp(&w);
             assert_relative_eq!(q.to_rotation_matrix().into_inner(), r, epsilon = 1e-14);
+            let n = w.norm();
+            assert_relative_eq!(axis_angle(&(w / n), n), r, epsilon = 1e-14);
         }
     }
 

@@ -155,6 +155,16 @@ impl Joint {
         }
     }
 
+    /// `placement · x_jc(q)`: the child body's pose in the parent body's frame for a joint frame
+    /// at `placement`, writing the subspace into `s` as [`Joint::transform_and_subspace`] does.
+    #[inline]
+    pub fn placed_transform(&self, placement: &Transform, q: &[f64], s: &mut [Motion]) -> Transform {
+        match self {
+            Joint::Hinge { axis } => hinge::placed_transform(placement, axis, q, s),
+            _ => placement * &self.transform_and_subspace(q, s),
+        }
+    }
+
     /// The bias `cJ = S̊ q̇` (child frame) for subspace `s` computed at the same `q`, velocity `v`.
     /// Zero for every kind whose subspace is constant in the child frame.
     #[inline]

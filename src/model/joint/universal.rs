@@ -4,13 +4,13 @@
 //! `S = [[0, 0], [R₂ᵀ a₁, a₂]]`; its apparent derivative gives
 //! `cJ = [0; θ̇₁ θ̇₂ (R₂ᵀ a₁) × a₂]`.
 
-use crate::math::{exp3, Mat3, Motion, Transform, Vec3};
+use crate::math::{axis_angle, Mat3, Motion, Transform, Vec3};
 
 /// Rotation of the two-axis joint and `R₂ᵀ a₁` (the first axis seen from the child frame).
 #[inline]
 pub(super) fn two_axis_rotation(axis1: &Vec3, axis2: &Vec3, theta1: f64, theta2: f64) -> (Mat3, Vec3) {
-    let r1 = exp3(&(axis1 * theta1));
-    let r2 = exp3(&(axis2 * theta2));
+    let r1 = axis_angle(axis1, theta1);
+    let r2 = axis_angle(axis2, theta2);
     (r1 * r2, r2.tr_mul(axis1))
 }
 
