@@ -1,0 +1,119 @@
+//! The `gelenk` command line: `inspect --json` reports Pinocchio's joint layout, `dynamics`
+//! reproduces the reference values of ../shared/reference, and bad input gives one readable line
+//! on stderr with a non-zero exit status, never a panic.
+
+mod common;
+
+use common::*;
+use serde_json::Value;
+use std::process::{Command, Output};
+
+fn gelenk(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_gelenk")).args(args).output().expect("gelenk runs")
+}
+
+fn model_path(name: &str) -> String {
+    shared_dir().join("models").join(name).display().to_string()
+}
+
+#[test]
+fn inspect_json_reports_layout_and_mass() {
+    let out = gelenk(&["inspect", &model_path("solo12.urdf"), "--floating", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["nq"], 19);
+    assert_eq!(v["nv"], 18);
+    let joints = v["joints"].as_array().unwrap();
+    assert_eq!(joints.len(), 13);
+    assert_eq!(joints[0]["name"], "root_joint");
+    assert_eq!(joints[0]["type"], "free");
+    assert_eq!(joints[0]["parent"], "universe");
+    assert_eq!((joints[1]["idx_q"].as_u64(), joints[1]["idx_v"].as_u64()), (Some(7), Some(6)));
+    let reference: Value =
+        serde_json::from_str(&std::fs::read_to_string(shared_dir().join("reference/solo12_floating.json")).unwrap())
+            .unwrap();
+    let mass = reference["states"][0]["mass"].as_f64().unwrap();
+    assert!((v["mass"].as_f64().unwrap() - mass).abs() < 1e-9 * mass);
+
+    let table = gelenk(&["inspect", &model_path("panda.urdf")]);
+    assert!(table.status.success());
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(text.contains("panda_joint1") && text.contains("nv = 9"), "{text}");
+}
+
+#[test]
+fn dynamics_command_reproduces_reference() {
+    let text = std::fs::read_to_string(shared_dir().join("reference/ur5.json")).unwrap();
+    let reference: Value = serde_json::from_str(&text).unwrap();
+    let states: Vec<Value> = reference["states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| serde_json::json!({"q": s["q"], "v": s["v"], "a": s["a"], "tau": s["tau"]}))
+        .collect();
+    let dir = std::env::temp_dir().join(format!("gelenk-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let states_file = dir.join("states.json");
+    std::fs::write(&states_file, serde_json::json!({ "states": states }).to_string()).unwrap();
+    let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states_file.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["nv"], 6);
+    for (got, want) in v["results"].as_array().unwrap().iter().zip(reference["states"].as_array().unwrap()) {
+        for key in ["nle", "gravity", "rnea", "aba", "com"] {
+            assert!(max_rel_err(dvec(&got[key]).as_slice(), dvec(&want[key]).as_slice()) < 1e-9, "{key}");
+        }
+        let m = dmat(&got["mass_matrix"]);
+        assert!(max_rel_err(m.as_slice(), dmat(&want["mass_matrix"]).as_slice()) < 1e-9);
+        for key in ["kinetic_energy", "potential_energy", "mass"] {
+            let (g, w) = (got[key].as_f64().unwrap(), want[key].as_f64().unwrap());
+            assert!((g - w).abs() < 1e-9 * w.abs().max(1.0), "{key}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn assert_one_line_error(out: &Output, needle: &str) {
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "expected one line, got: {err}");
+    assert!(err.starts_with("gelenk: error:") && err.contains(needle), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_input_is_one_line_and_nonzero_exit() {
+    assert_one_line_error(&gelenk(&["inspect", "/nonexistent/robot.urdf"]), "cannot read");
+    let dir = std::env::temp_dir().join(format!("gelenk-cli-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let broken = dir.join("broken.urdf");
+    std::fs::write(&broken, "<robot name='x'><link name='a'>").unwrap();
+    assert_one_line_error(&gelenk(&["inspect", broken.to_str().unwrap()]), "broken.urdf");
+    let states = dir.join("states.json");
+    std::fs::write(&states, r#"{"states":[{"q":[0,0]}]}"#).unwrap();
+    let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states.to_str().unwrap()]);
+    assert_one_line_error(&out, "\"q\" has 2 entries");
+    std::fs::write(&states, "not json").unwrap();
+    let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states.to_str().unwrap()]);
+    assert_one_line_error(&out, "not valid JSON");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn inspect_warns_about_massless_subtree() {
+    let dir = std::env::temp_dir().join(format!("gelenk-cli-massless-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("massless.urdf");
+    std::fs::write(
+        &file,
+        r#"<robot name="m"><link name="base"/><link name="tip"/>
+           <joint name="spin" type="continuous"><parent link="base"/><child link="tip"/><axis xyz="0 0 1"/></joint>
+           </robot>"#,
+    )
+    .unwrap();
+    let out = gelenk(&["inspect", file.to_str().unwrap()]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("warning") && err.contains("spin"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
