@@ -41,6 +41,11 @@ pub mod math;
 pub mod model;
 pub mod state;
 
+/// The README's examples are compiled and run as doctests.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 pub use data::Data;
 pub use error::{DynamicsError, ModelError};
 pub use model::{Model, ModelBuilder};
