@@ -26,8 +26,7 @@ impl Fixture {
     fn new(model: Model) -> Self {
         let mut rng = rand::rngs::StdRng::seed_from_u64(1);
         let nv = model.nv();
-        let random =
-            |rng: &mut rand::rngs::StdRng| DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
+        let random = |rng: &mut rand::rngs::StdRng| DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
         let vs = (0..POOL).map(|_| random(&mut rng)).collect();
         let taus = (0..POOL).map(|_| random(&mut rng)).collect();
         let qs = (0..POOL).map(|_| model.random_configuration(&mut rng)).collect();
