@@ -574,11 +574,9 @@ fn kinetic_energy_of_loaded_links_matches_their_urdf_mass_properties() {
     assert!((ke - sum).abs() < 1e-12 * sum, "KE {ke} vs Σ links {sum}");
 }
 
-/// Known bug (src/io/urdf.rs): for a planar joint whose normal is not z, the loader puts the
-/// joint's `<dynamics>` on the fused `__planar_fixed` body instead of the planar carrier joint, so
-/// damping and friction silently become 0. Run with `--ignored` once fixed, then drop the `ignore`.
+/// A planar joint whose normal is not z is carried by an extra massless body; its `<dynamics>`
+/// must land on that planar joint, not on the fused fixed joint behind it.
 #[test]
-#[ignore = "bug: URDF planar joint with a non-z normal loses its <dynamics> damping/friction"]
 fn planar_joint_dynamics_are_kept_whatever_the_normal() {
     for normal in ["0 0 1", "1 0 0", "0 1 1"] {
         let text = planar_robot(normal)

@@ -215,6 +215,12 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
         let range =
             if lim.lower < lim.upper { (lim.lower, lim.upper) } else { (f64::NEG_INFINITY, f64::INFINITY) };
         let (velocity, effort) = (given(lim.velocity), given(lim.effort));
+        let dynamics = j
+            .dynamics
+            .as_ref()
+            .map(|d| JointDynamics { damping: d.damping, friction: d.friction })
+            .unwrap_or_default();
+        body.dynamics = dynamics;
         use urdf_rs::JointType as T;
         match &j.joint_type {
             T::Revolute | T::Continuous => {
@@ -262,19 +268,22 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
                     // The planar joint moves in its frame's xy-plane: turn that frame so that z is the
                     // URDF normal, and attach the link back through a fixed rotation.
                     let carrier = format!("{}__planar", child.name);
-                    builder.add_body(
-                        BodySpec::new(carrier.clone(), j.parent.link.clone(), Joint::Planar,
-                            placement * Transform::new(align, Vec3::zeros()), RigidInertia::massless())
-                            .with_joint_name(j.name.clone()),
-                    );
+                    let mut carrier_body = BodySpec::new(
+                        carrier.clone(),
+                        j.parent.link.clone(),
+                        Joint::Planar,
+                        placement * Transform::new(align, Vec3::zeros()),
+                        RigidInertia::massless(),
+                    )
+                    .with_joint_name(j.name.clone());
+                    carrier_body.dynamics = dynamics;
+                    builder.add_body(carrier_body);
+                    body.dynamics = JointDynamics::default();
                     body.parent = carrier;
                     body.placement = Transform::new(align.transpose(), Vec3::zeros());
                     body.joint_name = format!("{}__planar_fixed", j.name);
                 }
             }
-        }
-        if let Some(d) = &j.dynamics {
-            body.dynamics = JointDynamics { damping: d.damping, friction: d.friction };
         }
         builder.add_body(body);
     }

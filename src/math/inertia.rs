@@ -84,7 +84,7 @@ impl SpatialInertia {
         let h_r = r * self.first_moment;
         // I_o' = R I_o Rᵀ − ([Rh]×[t]× + [t]×[Rh]× + m [t]×²), with [a]×[b]× = b aᵀ − (a·b) 1:
         //      = R I_o Rᵀ − (t hᵀ + h tᵀ + m t tᵀ) + (2 h·t + m t·t) 1   (h = R h_b)
-        let mut inertia_origin = r * self.inertia_origin * r.transpose();
+        let mut inertia_origin = rotate_symmetric(r, &self.inertia_origin);
         let diag = 2.0 * h_r.dot(t) + self.mass * t.norm_squared();
         let mt = t * self.mass;
         for c in 0..3 {
@@ -108,6 +108,21 @@ impl SpatialInertia {
             && self.first_moment.iter().all(|x| x.is_finite())
             && self.inertia_origin.iter().all(|x| x.is_finite())
     }
+}
+
+/// `R S Rᵀ` for a symmetric `S`, forming only the six distinct entries.
+#[inline]
+pub(crate) fn rotate_symmetric(r: &Mat3, s: &Mat3) -> Mat3 {
+    let rs = r * s;
+    let mut out = Mat3::zeros();
+    for i in 0..3 {
+        for j in i..3 {
+            let x = rs[(i, 0)] * r[(j, 0)] + rs[(i, 1)] * r[(j, 1)] + rs[(i, 2)] * r[(j, 2)];
+            out[(i, j)] = x;
+            out[(j, i)] = x;
+        }
+    }
+    out
 }
 
 impl std::ops::Add for SpatialInertia {
