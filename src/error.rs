@@ -144,3 +144,64 @@ pub enum DynamicsError {
         count: usize,
     },
 }
+
+/// An error while turning geometry into colliders or while detecting collisions. Every variant
+/// names the link (or collider) it concerns.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum CollisionError {
+    /// A mesh URI resolved to no existing file.
+    #[error("link `{link}`: mesh `{uri}` not found (looked for: {tried})")]
+    MeshNotFound {
+        /// Link declaring the mesh.
+        link: String,
+        /// URI as written in the model.
+        uri: String,
+        /// The candidate paths tried, separated by ", ".
+        tried: String,
+    },
+    /// A mesh file exists but could not be read or parsed.
+    #[error("link `{link}`: mesh `{path}` could not be read: {message}")]
+    MeshUnreadable {
+        /// Link declaring the mesh.
+        link: String,
+        /// Resolved file path.
+        path: String,
+        /// The loader's message.
+        message: String,
+    },
+    /// A shape has invalid parameters (non-positive size, non-finite numbers, too few points, a
+    /// degenerate convex hull, a half-space on a moving body, ...).
+    #[error("link `{link}`: invalid collision shape: {what}")]
+    InvalidShape {
+        /// Link (or collider name) owning the shape.
+        link: String,
+        /// What is wrong.
+        what: String,
+    },
+    /// A multibody, body or collider index out of range.
+    #[error("index {index} is out of range ({count} {what})")]
+    IndexOutOfRange {
+        /// "multibodies", "bodies" or "colliders".
+        what: &'static str,
+        /// Index given.
+        index: usize,
+        /// Number available.
+        count: usize,
+    },
+    /// The pose of a body holding colliders is not finite.
+    #[error("collider `{collider}`: its body pose is not finite")]
+    NonFinitePose {
+        /// Name of the collider (its link).
+        collider: String,
+    },
+    /// `Data` given for a multibody does not belong to a model of the same size.
+    #[error("multibody {multibody}: data has {got} bodies, the model had {expected}")]
+    DataMismatch {
+        /// Multibody index.
+        multibody: usize,
+        /// Bodies in the model when it was added.
+        expected: usize,
+        /// Bodies in the data given.
+        got: usize,
+    },
+}

@@ -34,6 +34,7 @@
 #![warn(missing_docs)]
 
 pub mod algorithms;
+pub mod collision;
 pub mod data;
 pub mod error;
 pub mod io;
@@ -47,7 +48,7 @@ pub mod state;
 pub struct ReadmeDoctests;
 
 pub use data::Data;
-pub use error::{DynamicsError, ModelError};
+pub use error::{CollisionError, DynamicsError, ModelError};
 pub use model::{Model, ModelBuilder};
 pub use state::State;
 

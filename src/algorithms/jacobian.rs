@@ -76,7 +76,7 @@ pub fn frame_jacobian<'d>(
     Ok(&data.jacobian)
 }
 
-fn last_dof_of(model: &Model, body: usize) -> usize {
+pub(crate) fn last_dof_of(model: &Model, body: usize) -> usize {
     let mut b = body;
     while b != 0 {
         let nv = model.joints[b].nv();

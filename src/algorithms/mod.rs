@@ -6,7 +6,7 @@ mod check;
 mod crba;
 mod energy;
 mod factor;
-mod jacobian;
+pub(crate) mod jacobian;
 mod kinematics;
 mod rnea;
 

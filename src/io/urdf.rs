@@ -118,7 +118,9 @@ pub fn load_file(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Model,
     let file = path.display().to_string();
     let text =
         std::fs::read_to_string(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
-    load_named(&text, &file, options)
+    let mut model = load_named(&text, &file, options)?;
+    model.source_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
+    Ok(model)
 }
 
 /// Loads a URDF document from text.

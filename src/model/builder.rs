@@ -37,6 +37,43 @@ impl RigidInertia {
         Self { mass, com: Vec3::zeros(), inertia_com: Mat3::from_diagonal(&d) }
     }
 
+    /// A solid sphere of `mass` kg and `radius` m, centred at the origin.
+    pub fn solid_sphere(mass: f64, radius: f64) -> Self {
+        let i = 0.4 * mass * radius * radius;
+        Self { mass, com: Vec3::zeros(), inertia_com: Mat3::from_diagonal_element(i) }
+    }
+
+    /// A solid cylinder of `mass` kg, `radius` and `length` (m) along z, centred at the origin.
+    pub fn solid_cylinder(mass: f64, radius: f64, length: f64) -> Self {
+        let axial = 0.5 * mass * radius * radius;
+        let transverse = mass * (3.0 * radius * radius + length * length) / 12.0;
+        Self {
+            mass,
+            com: Vec3::zeros(),
+            inertia_com: Mat3::from_diagonal(&Vec3::new(transverse, transverse, axial)),
+        }
+    }
+
+    /// A solid capsule of total `mass` kg (uniform density): a cylinder of `radius` and `length`
+    /// (m) along z with hemispherical caps, centred at the origin.
+    pub fn solid_capsule(mass: f64, radius: f64, length: f64) -> Self {
+        let (r, l) = (radius, length);
+        let (v_cyl, v_caps) =
+            (std::f64::consts::PI * r * r * l, 4.0 / 3.0 * std::f64::consts::PI * r * r * r);
+        let (m_cyl, m_caps) = (mass * v_cyl / (v_cyl + v_caps), mass * v_caps / (v_cyl + v_caps));
+        let axial = 0.5 * m_cyl * r * r + 0.4 * m_caps * r * r;
+        // Caps: a sphere's inertia about its centre, shifted by the hemisphere centroid offset
+        // (l/2 + 3r/8) with the parallel-axis theorem applied through each half's own centroid.
+        let cap_about_own = 0.4 * m_caps * r * r - m_caps * (3.0 * r / 8.0).powi(2);
+        let transverse =
+            m_cyl * (3.0 * r * r + l * l) / 12.0 + cap_about_own + m_caps * (l / 2.0 + 3.0 * r / 8.0).powi(2);
+        Self {
+            mass,
+            com: Vec3::zeros(),
+            inertia_com: Mat3::from_diagonal(&Vec3::new(transverse, transverse, axial)),
+        }
+    }
+
     fn spatial(&self) -> SpatialInertia {
         SpatialInertia::new(self.mass, self.com, self.inertia_com)
     }
@@ -115,6 +152,18 @@ impl BodySpec {
     /// Renames the joint.
     pub fn with_joint_name(mut self, joint_name: impl Into<String>) -> Self {
         self.joint_name = joint_name.into();
+        self
+    }
+
+    /// Adds a collision shape at `placement` in this body's frame.
+    pub fn with_collision(mut self, shape: super::Shape, placement: Transform) -> Self {
+        self.geometries.push(GeometrySpec {
+            link: self.name.clone(),
+            role: super::GeometryRole::Collision,
+            shape,
+            placement,
+            body: 0,
+        });
         self
     }
 
@@ -222,6 +271,7 @@ impl ModelBuilder {
             }],
             geometries: Vec::new(),
             gravity: self.gravity,
+            source_dir: None,
         };
         let mut limits: Vec<(usize, &BodySpec)> = Vec::new();
         let mut visited = vec![false; specs.len()];

@@ -2,6 +2,7 @@
 //! collision module; dynamics never reads them and never opens a mesh file.
 
 use crate::math::{Transform, Vec3};
+use nalgebra::DMatrix;
 
 /// What a geometry is used for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -38,6 +39,35 @@ pub enum Shape {
     Sphere {
         /// Radius (m).
         radius: f64,
+    },
+    /// The convex hull of a point cloud given in the shape frame (m).
+    ConvexHull {
+        /// Points whose hull is the shape (at least 4, not coplanar).
+        points: Vec<Vec3>,
+    },
+    /// A triangle mesh in the shape frame: exact, hollow surface (m; counter-clockwise triangles
+    /// seen from outside).
+    TriMesh {
+        /// Vertex positions (m).
+        vertices: Vec<Vec3>,
+        /// Vertex indices of each triangle.
+        triangles: Vec<[u32; 3]>,
+    },
+    /// A terrain: `heights[(i, j)]` is the surface height (m, along z) at grid point
+    /// `x = -size_x/2 + i·size_x/(rows-1)`, `y = -size_y/2 + j·size_y/(cols-1)`; the grid is centred on the
+    /// shape frame's origin. At least 2×2 samples.
+    HeightField {
+        /// Heights (m), rows along x, columns along y.
+        heights: DMatrix<f64>,
+        /// Extent of the grid along x (m).
+        size_x: f64,
+        /// Extent of the grid along y (m).
+        size_y: f64,
+    },
+    /// The half-space `n·p ≤ 0` of the shape frame (a ground plane through its origin); static only.
+    HalfSpace {
+        /// Outward normal (unit after normalisation; need not be given normalised).
+        normal: Vec3,
     },
     /// A mesh file, by the URI written in the model (`package://`, relative or absolute path),
     /// not yet resolved or read.

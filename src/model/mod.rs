@@ -70,12 +70,21 @@ pub struct Model {
     pub(crate) frames: Vec<Frame>,
     pub(crate) geometries: Vec<GeometrySpec>,
     pub(crate) gravity: Vec3,
+    pub(crate) source_dir: Option<std::path::PathBuf>,
 }
 
 impl Model {
     /// The model's name (URDF robot name).
     pub fn name(&self) -> &str {
         &self.name
+    }
+    /// Directory of the file the model was loaded from (relative mesh URIs resolve against it).
+    pub fn source_dir(&self) -> Option<&std::path::Path> {
+        self.source_dir.as_deref()
+    }
+    /// Sets the directory that relative mesh URIs resolve against.
+    pub fn set_source_dir(&mut self, dir: Option<std::path::PathBuf>) {
+        self.source_dir = dir;
     }
     /// Number of configuration coordinates.
     pub fn nq(&self) -> usize {

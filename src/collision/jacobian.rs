@@ -1,0 +1,127 @@
+//! Contact frames and contact Jacobians: for a contact between A and B, the 3×nv matrix `J_c`
+//! such that `J_c v = Rᵀ (v_A(p_A) − v_B(p_B))`, the velocity of A's contact point relative to
+//! B's, in the contact frame whose axes are the normal (B → A) and two tangents. Positive normal
+//! velocity separates. This is the input of the constraint rows.
+
+use super::world::{Attachment, Contact};
+use crate::algorithms::jacobian::last_dof_of;
+use crate::data::Data;
+use crate::error::CollisionError;
+use crate::math::{Mat3, Vec3};
+use crate::model::{Model, NO_DOF};
+use nalgebra::DMatrix;
+
+/// Two unit tangents completing the unit normal `n` to a right-handed orthonormal frame
+/// (n, t1, t2), continuous except where n_z changes sign (Duff et al., "Building an orthonormal
+/// basis, revisited", JCGT 2017).
+pub fn tangents(n: &Vec3) -> (Vec3, Vec3) {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t1 = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let t2 = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    (t1, t2)
+}
+
+/// The contact frame of normal `n`: a rotation whose columns are (n, t1, t2) in world axes.
+pub fn contact_frame(n: &Vec3) -> Mat3 {
+    let (t1, t2) = tangents(n);
+    Mat3::from_columns(&[*n, t1, t2])
+}
+
+/// Adds `sign · Rᵀ J_p` to the 3 rows starting at `row` and the nv columns starting at `col` of
+/// `out`, where `J_p` is the 3×nv Jacobian of the world velocity of the point `point` (world, m)
+/// fixed on body `body`, and `R` the contact frame. Needs `data.j_world` and `data.x_wb` from
+/// [`crate::algorithms::compute_joint_jacobians`].
+#[allow(clippy::too_many_arguments)]
+pub fn add_point_jacobian(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    point: &Vec3,
+    frame: &Mat3,
+    sign: f64,
+    out: &mut DMatrix<f64>,
+    row: usize,
+    col: usize,
+) {
+    let mut k = last_dof_of(model, body);
+    while k != NO_DOF {
+        let column = &data.j_world[k];
+        // Velocity of the body-fixed point at `point` from the spatial velocity about the origin.
+        let v = column.linear + column.angular.cross(point);
+        let local = frame.tr_mul(&v);
+        for r in 0..3 {
+            out[(row + r, col + k)] += sign * local[r];
+        }
+        k = model.dof_parent[k];
+    }
+}
+
+/// Writes the 3×nv contact Jacobian of `contact` (rows: normal, tangent 1, tangent 2; see
+/// [`tangents`]) into `out`, for a contact whose non-static sides belong to multibody
+/// `multibody`, the one described by `model` and `data` (after
+/// [`crate::algorithms::compute_joint_jacobians`]). Static sides contribute nothing.
+pub fn contact_jacobian(
+    model: &Model,
+    data: &Data,
+    multibody: usize,
+    contact: &Contact,
+    out: &mut DMatrix<f64>,
+) -> Result<(), CollisionError> {
+    if out.nrows() != 3 || out.ncols() != model.nv() {
+        return Err(CollisionError::IndexOutOfRange {
+            what: "Jacobian columns",
+            index: out.ncols(),
+            count: model.nv(),
+        });
+    }
+    out.fill(0.0);
+    let frame = contact_frame(&contact.normal);
+    for (side, point, sign) in
+        [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
+    {
+        match side {
+            Attachment::World => {}
+            Attachment::Body { multibody: m, body } => {
+                if m != multibody {
+                    return Err(CollisionError::IndexOutOfRange {
+                        what: "multibodies",
+                        index: m,
+                        count: multibody + 1,
+                    });
+                }
+                if body >= model.nbodies() {
+                    return Err(CollisionError::IndexOutOfRange {
+                        what: "bodies",
+                        index: body,
+                        count: model.nbodies(),
+                    });
+                }
+                add_point_jacobian(model, data, body, &point, &frame, sign, out, 0, 0);
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tangents_are_orthonormal_and_right_handed() {
+        for n in [
+            Vec3::z(),
+            -Vec3::z(),
+            Vec3::x(),
+            Vec3::new(0.3, -0.4, 0.5).normalize(),
+            Vec3::new(1e-9, 0.0, -1.0),
+        ] {
+            let n = n.normalize();
+            let r = contact_frame(&n);
+            assert!((r.transpose() * r - Mat3::identity()).abs().max() < 1e-14);
+            assert!((r.determinant() - 1.0).abs() < 1e-14);
+        }
+    }
+}

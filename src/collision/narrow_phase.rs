@@ -1,0 +1,110 @@
+//! Narrow phase: contact manifolds of one pair of colliders through parry, with the per-pair
+//! state (manifolds and workspaces) that persists between steps.
+//!
+//! [`dispatch`] is the one place that decides which algorithm handles which pair of shapes.
+
+use super::shape::ShapeKind;
+use parry3d_f64::math::{Pose, Real};
+use parry3d_f64::query::details::{
+    contact_manifold_ball_ball_shapes, contact_manifold_capsule_capsule_shapes,
+    contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
+    contact_manifold_halfspace_pfm, contact_manifold_pfm_pfm_shapes,
+};
+use parry3d_f64::query::{
+    ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
+    Unsupported,
+};
+use parry3d_f64::shape::Shape as ParryShape;
+use std::collections::HashMap;
+
+/// Manifolds of one pair, as parry writes them.
+pub(crate) type Manifold = ContactManifold<(), ()>;
+
+/// What persists for one pair of colliders between steps.
+#[derive(Default)]
+pub(crate) struct PairState {
+    pub manifolds: Vec<Manifold>,
+    pub workspace: Option<ContactManifoldsWorkspace>,
+    pub last_step: u64,
+}
+
+/// Per-pair state keyed by (collider A, collider B).
+#[derive(Default)]
+pub(crate) struct PairCache {
+    pub pairs: HashMap<(u32, u32), PairState>,
+}
+
+impl PairCache {
+    /// Drops the state of pairs that were not near each other in step `step`.
+    pub fn forget_older_than(&mut self, step: u64) {
+        self.pairs.retain(|_, s| s.last_step >= step);
+    }
+}
+
+/// Computes the contact manifolds of shape A (kind `kind_a`) against shape B, with `pos_ab` the
+/// pose of B's frame in A's frame and `prediction` the contact margin (m). Points come out in the
+/// frames of A and B (or of their sub-shapes, see `ContactManifold::subshape_pos*`); each
+/// manifold's `local_n1` is the outward normal of A (pointing from A to B).
+///
+/// | A \ B | sphere | box | capsule | cylinder, hull | half-space | trimesh, heightfield |
+/// |---|---|---|---|---|---|---|
+/// | sphere | ball–ball | convex–ball | convex–ball | convex–ball | convex–ball | per triangle |
+/// | box | convex–ball | box–box (SAT + clipping) | polygonal features | polygonal features | half-space–features | per triangle |
+/// | capsule | convex–ball | polygonal features | capsule–capsule | polygonal features | half-space–features | per triangle |
+/// | cylinder, hull | convex–ball | polygonal features | polygonal features | polygonal features | half-space–features | per triangle |
+///
+/// "Polygonal features" is GJK/EPA for the normal followed by clipping of the two support
+/// features; "per triangle" runs the convex rules against each triangle near the other shape.
+/// Static–static pairs never reach this function.
+pub(crate) fn dispatch(
+    kind_a: ShapeKind,
+    shape_a: &dyn ParryShape,
+    kind_b: ShapeKind,
+    shape_b: &dyn ParryShape,
+    pos_ab: &Pose,
+    prediction: Real,
+    state: &mut PairState,
+) -> Result<(), Unsupported> {
+    use ShapeKind::*;
+    let convex = |k: ShapeKind| k.is_convex();
+    if convex(kind_a) && (convex(kind_b) || kind_b == HalfSpace) {
+        if state.manifolds.is_empty() {
+            state.manifolds.push(Manifold::new());
+        }
+        let m = &mut state.manifolds[0];
+        match (kind_a, kind_b) {
+            (Sphere, Sphere) => contact_manifold_ball_ball_shapes(pos_ab, shape_a, shape_b, prediction, m),
+            (Box, Box) => contact_manifold_cuboid_cuboid_shapes(pos_ab, shape_a, shape_b, prediction, m),
+            (Capsule, Capsule) => {
+                contact_manifold_capsule_capsule_shapes(pos_ab, shape_a, shape_b, prediction, m)
+            }
+            (Sphere, _) | (_, Sphere) => {
+                contact_manifold_convex_ball_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m)
+            }
+            (_, HalfSpace) => {
+                let half_space = shape_b.as_halfspace().ok_or(Unsupported)?;
+                let (features, border) = shape_a.as_polygonal_feature_map().ok_or(Unsupported)?;
+                contact_manifold_halfspace_pfm(
+                    &pos_ab.inverse(),
+                    half_space,
+                    features,
+                    border,
+                    prediction,
+                    m,
+                    true,
+                )
+            }
+            _ => contact_manifold_pfm_pfm_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m),
+        }
+        Ok(())
+    } else {
+        DefaultQueryDispatcher.contact_manifolds(
+            pos_ab,
+            shape_a,
+            shape_b,
+            prediction,
+            &mut state.manifolds,
+            &mut state.workspace,
+        )
+    }
+}

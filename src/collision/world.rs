@@ -1,0 +1,502 @@
+//! [`CollisionWorld`]: the colliders of several multibodies and of the static world, the
+//! filtering rules, and the per-step detection (broad phase → narrow phase → reduced sets)
+//! writing [`Contact`]s into a buffer that lives across steps.
+
+use super::broad_phase::SweepAndPrune;
+use super::convert::{from_pose, from_vector, to_pose};
+use super::mesh::{MeshOptions, MissingMeshPolicy};
+use super::narrow_phase::{dispatch, PairCache};
+use super::reduce::{reduce, Candidate};
+use super::shape::{self, ShapeKind, ShapeSource};
+use crate::data::Data;
+use crate::error::CollisionError;
+use crate::math::{Transform, Vec3};
+use crate::model::{GeometryRole, Model, Shape};
+use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
+use parry3d_f64::math::Pose;
+use parry3d_f64::shape::SharedShape;
+
+/// What a collider moves with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Attachment {
+    /// Static world geometry (ground, terrain, walls): never moves.
+    World,
+    /// Body `body` of multibody `multibody` (body 0 is that multibody's universe: fixed, static).
+    Body {
+        /// Index of the multibody in the collision world (the order of [`CollisionWorld::add_model`]).
+        multibody: usize,
+        /// Body index in that multibody's [`Model`].
+        body: usize,
+    },
+}
+
+impl Attachment {
+    /// Whether the collider can never move.
+    pub fn is_static(&self) -> bool {
+        matches!(self, Attachment::World | Attachment::Body { body: 0, .. })
+    }
+}
+
+/// Collision groups and masks: two colliders may touch only if each one's group bits meet the
+/// other's mask bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CollisionFilter {
+    /// Groups this collider belongs to (bit set).
+    pub group: u32,
+    /// Groups this collider collides with (bit set).
+    pub mask: u32,
+}
+
+impl Default for CollisionFilter {
+    fn default() -> Self {
+        Self { group: 1, mask: u32::MAX }
+    }
+}
+
+impl CollisionFilter {
+    /// Whether two filters allow contact.
+    pub fn accepts(&self, other: &CollisionFilter) -> bool {
+        self.group & other.mask != 0 && other.group & self.mask != 0
+    }
+}
+
+/// A collision shape attached to a body or to the world.
+#[derive(Clone)]
+pub struct Collider {
+    name: String,
+    attachment: Attachment,
+    kind: ShapeKind,
+    placement: Transform,
+    /// Groups and mask.
+    pub filter: CollisionFilter,
+    /// Material index (contact parameters are looked up per material pair by the world).
+    pub material: u32,
+    shape: SharedShape,
+    /// Pose of parry's shape frame in the geometry frame (parry is y-up for some shapes).
+    offset: Option<Transform>,
+    /// Pose of parry's shape frame in the body frame.
+    local_pose: Pose,
+    world_pose: Pose,
+    aabb: Aabb,
+}
+
+impl Collider {
+    /// Name (the declaring link's, or the name given for static geometry).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// What the collider moves with.
+    pub fn attachment(&self) -> Attachment {
+        self.attachment
+    }
+    /// Shape kind.
+    pub fn kind(&self) -> ShapeKind {
+        self.kind
+    }
+    /// Pose of the geometry frame in the body frame (in the world frame for static geometry).
+    pub fn placement(&self) -> &Transform {
+        &self.placement
+    }
+    /// Pose of the geometry frame in the world, as of the last update.
+    pub fn world_pose(&self) -> Transform {
+        let parry_frame = from_pose(&self.world_pose);
+        self.offset.map_or(parry_frame, |o| parry_frame * o.inverse())
+    }
+    /// World axis-aligned bounding box (m), as of the last update, margin not included.
+    pub fn aabb(&self) -> ([f64; 3], [f64; 3]) {
+        (self.aabb.mins.to_array(), self.aabb.maxs.to_array())
+    }
+}
+
+/// One contact point between colliders A and B, in the world frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contact {
+    /// Index of collider A.
+    pub collider_a: usize,
+    /// Index of collider B (static geometry is always B when one side is static).
+    pub collider_b: usize,
+    /// What A moves with.
+    pub body_a: Attachment,
+    /// What B moves with.
+    pub body_b: Attachment,
+    /// The point of A's surface nearest to B (world, m).
+    pub point_a: Vec3,
+    /// The point of B's surface nearest to A (world, m).
+    pub point_b: Vec3,
+    /// Unit contact normal in world axes, pointing from B to A: A moving along it separates.
+    pub normal: Vec3,
+    /// Signed distance along the normal (m): negative = penetration depth, positive = gap
+    /// (reported up to the contact margin).
+    pub distance: f64,
+    /// Identifies the contact across steps (same features of the same pair), for warm starts.
+    pub feature: u64,
+}
+
+/// Options of the collision pipeline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CollisionOptions {
+    /// Contact margin (m): pairs closer than this are reported before they touch.
+    pub margin: f64,
+    /// Also test bodies joined directly by a joint (normally skipped: they overlap at the joint).
+    pub collide_joined_bodies: bool,
+}
+
+impl Default for CollisionOptions {
+    fn default() -> Self {
+        Self { margin: 0.005, collide_joined_bodies: false }
+    }
+}
+
+/// Counters of the last [`CollisionWorld::detect`] call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CollisionStats {
+    /// Pairs whose boxes overlapped and passed the filters.
+    pub broad_pairs: usize,
+    /// Pairs with at least one contact.
+    pub touching_pairs: usize,
+    /// Contact points before reduction.
+    pub raw_points: usize,
+    /// Contact points after reduction.
+    pub contacts: usize,
+}
+
+#[derive(Clone, Debug)]
+struct MultibodyEntry {
+    parents: Vec<usize>,
+    self_collision: bool,
+    colliders: Vec<usize>,
+}
+
+/// The collision scene: colliders, filters, broad-phase and pair state, and the contact buffer.
+#[derive(Default)]
+pub struct CollisionWorld {
+    options: CollisionOptions,
+    colliders: Vec<Collider>,
+    multibodies: Vec<MultibodyEntry>,
+    broad: SweepAndPrune,
+    cache: PairCache,
+    aabbs: Vec<Aabb>,
+    pair_buffer: Vec<(u32, u32)>,
+    candidates: Vec<Candidate>,
+    contacts: Vec<Contact>,
+    warnings: Vec<String>,
+    step: u64,
+    stats: CollisionStats,
+}
+
+impl CollisionWorld {
+    /// An empty collision world.
+    pub fn new(options: CollisionOptions) -> Self {
+        Self { options, ..Self::default() }
+    }
+
+    /// The options.
+    pub fn options(&self) -> &CollisionOptions {
+        &self.options
+    }
+
+    /// Adds the collision geometry of `model` (its [`GeometryRole::Collision`] entries) as a new
+    /// multibody and returns its index. Meshes are read now; relative URIs resolve against
+    /// [`Model::source_dir`]. Self-collision starts off.
+    pub fn add_model(&mut self, model: &Model, meshes: &MeshOptions) -> Result<usize, CollisionError> {
+        let multibody = self.multibodies.len();
+        let mut new = Vec::new();
+        for g in model.geometries().iter().filter(|g| g.role == GeometryRole::Collision) {
+            let src = ShapeSource { link: &g.link, model_dir: model.source_dir(), on_body: g.body != 0 };
+            let built = match shape::build(&g.shape, &src, meshes) {
+                Ok(s) => s,
+                Err(e @ (CollisionError::MeshNotFound { .. } | CollisionError::MeshUnreadable { .. }))
+                    if meshes.missing == MissingMeshPolicy::Skip =>
+                {
+                    self.warnings.push(format!("skipped: {e}"));
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            let attachment = Attachment::Body { multibody, body: g.body };
+            new.push(make_collider(g.link.clone(), attachment, g.placement, built));
+        }
+        let first = self.colliders.len();
+        self.colliders.extend(new);
+        self.multibodies.push(MultibodyEntry {
+            parents: (0..model.nbodies()).map(|i| model.parent(i)).collect(),
+            self_collision: false,
+            colliders: (first..self.colliders.len()).collect(),
+        });
+        self.broad.invalidate();
+        Ok(multibody)
+    }
+
+    /// Adds a collider to body `body` of multibody `multibody`, at pose `placement` in the body
+    /// frame, and returns its index.
+    pub fn add_body_collider(
+        &mut self,
+        multibody: usize,
+        body: usize,
+        name: &str,
+        geometry: &Shape,
+        placement: Transform,
+        meshes: &MeshOptions,
+    ) -> Result<usize, CollisionError> {
+        let count = self.multibodies.len();
+        let entry = self.multibodies.get(multibody).ok_or(CollisionError::IndexOutOfRange {
+            what: "multibodies",
+            index: multibody,
+            count,
+        })?;
+        if body >= entry.parents.len() {
+            return Err(CollisionError::IndexOutOfRange {
+                what: "bodies",
+                index: body,
+                count: entry.parents.len(),
+            });
+        }
+        let built =
+            shape::build(geometry, &ShapeSource { link: name, model_dir: None, on_body: body != 0 }, meshes)?;
+        let index = self.colliders.len();
+        self.colliders.push(make_collider(
+            name.to_string(),
+            Attachment::Body { multibody, body },
+            placement,
+            built,
+        ));
+        self.multibodies[multibody].colliders.push(index);
+        self.broad.invalidate();
+        Ok(index)
+    }
+
+    /// Adds static world geometry at pose `pose` (world frame) and returns its index.
+    pub fn add_static(
+        &mut self,
+        name: &str,
+        geometry: &Shape,
+        pose: Transform,
+        meshes: &MeshOptions,
+    ) -> Result<usize, CollisionError> {
+        let built =
+            shape::build(geometry, &ShapeSource { link: name, model_dir: None, on_body: false }, meshes)?;
+        let mut collider = make_collider(name.to_string(), Attachment::World, pose, built);
+        collider.world_pose = collider.local_pose;
+        collider.aabb = collider.shape.compute_aabb(&collider.world_pose);
+        self.colliders.push(collider);
+        self.broad.invalidate();
+        Ok(self.colliders.len() - 1)
+    }
+
+    /// Turns collisions between bodies of the same multibody on or off (joined bodies stay
+    /// excluded unless [`CollisionOptions::collide_joined_bodies`]).
+    pub fn set_self_collision(&mut self, multibody: usize, on: bool) -> Result<(), CollisionError> {
+        let count = self.multibodies.len();
+        let entry = self.multibodies.get_mut(multibody).ok_or(CollisionError::IndexOutOfRange {
+            what: "multibodies",
+            index: multibody,
+            count,
+        })?;
+        entry.self_collision = on;
+        Ok(())
+    }
+
+    /// Sets the groups and mask of a collider.
+    pub fn set_filter(&mut self, collider: usize, filter: CollisionFilter) -> Result<(), CollisionError> {
+        let count = self.colliders.len();
+        self.colliders
+            .get_mut(collider)
+            .ok_or(CollisionError::IndexOutOfRange { what: "colliders", index: collider, count })?
+            .filter = filter;
+        Ok(())
+    }
+
+    /// The colliders, indexed as in [`Contact::collider_a`].
+    pub fn colliders(&self) -> &[Collider] {
+        &self.colliders
+    }
+
+    /// Colliders of multibody `multibody`.
+    pub fn colliders_of(&self, multibody: usize) -> &[usize] {
+        self.multibodies.get(multibody).map_or(&[], |m| &m.colliders)
+    }
+
+    /// Messages about geometry that was left out (meshes skipped by [`MissingMeshPolicy::Skip`]).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Moves the colliders of `multibody` to the body poses `data.x_wb` of the last forward
+    /// kinematics.
+    pub fn update_multibody(&mut self, multibody: usize, data: &Data) -> Result<(), CollisionError> {
+        let count = self.multibodies.len();
+        let entry = self.multibodies.get(multibody).ok_or(CollisionError::IndexOutOfRange {
+            what: "multibodies",
+            index: multibody,
+            count,
+        })?;
+        if data.x_wb.len() != entry.parents.len() {
+            return Err(CollisionError::DataMismatch {
+                multibody,
+                expected: entry.parents.len(),
+                got: data.x_wb.len(),
+            });
+        }
+        for &c in &entry.colliders {
+            let collider = &mut self.colliders[c];
+            let Attachment::Body { body, .. } = collider.attachment else { continue };
+            let x_wb = &data.x_wb[body];
+            if !x_wb.is_finite() {
+                return Err(CollisionError::NonFinitePose { collider: collider.name.clone() });
+            }
+            collider.world_pose = to_pose(x_wb) * collider.local_pose;
+            collider.aabb = collider.shape.compute_aabb(&collider.world_pose);
+        }
+        Ok(())
+    }
+
+    /// Statistics of the last detection.
+    pub fn stats(&self) -> CollisionStats {
+        self.stats
+    }
+
+    /// The contacts found by the last [`CollisionWorld::detect`].
+    pub fn contacts(&self) -> &[Contact] {
+        &self.contacts
+    }
+
+    /// Finds every contact within the margin: broad phase over the boxes of the current poses,
+    /// filtering, narrow phase per pair, reduction to at most four points per pair. Buffers are
+    /// reused, so in steady state (the same pairs near each other) nothing is allocated.
+    pub fn detect(&mut self) -> &[Contact] {
+        self.step += 1;
+        self.contacts.clear();
+        self.stats = CollisionStats::default();
+        let margin = self.options.margin;
+        self.aabbs.clear();
+        self.aabbs.extend(self.colliders.iter().map(|c| c.aabb.loosened(margin)));
+        self.pair_buffer.clear();
+        let (colliders, multibodies, options) = (&self.colliders, &self.multibodies, &self.options);
+        let pairs = &mut self.pair_buffer;
+        self.broad.pairs(
+            &self.aabbs,
+            |i, j| may_collide(&colliders[i], &colliders[j], multibodies, options),
+            |i, j| {
+                // Static geometry is B; otherwise the lower index is A.
+                let swap =
+                    colliders[i].attachment.is_static() || (!colliders[j].attachment.is_static() && j < i);
+                pairs.push(if swap { (j as u32, i as u32) } else { (i as u32, j as u32) });
+            },
+        );
+        self.stats.broad_pairs = self.pair_buffer.len();
+        for k in 0..self.pair_buffer.len() {
+            let (a, b) = self.pair_buffer[k];
+            self.narrow(a as usize, b as usize);
+        }
+        self.cache.forget_older_than(self.step);
+        self.stats.contacts = self.contacts.len();
+        &self.contacts
+    }
+
+    fn narrow(&mut self, a: usize, b: usize) {
+        let (ca, cb) = (&self.colliders[a], &self.colliders[b]);
+        let state = self.cache.pairs.entry((a as u32, b as u32)).or_default();
+        state.last_step = self.step;
+        let pos_ab = ca.world_pose.inv_mul(&cb.world_pose);
+        let result =
+            dispatch(ca.kind, &*ca.shape.0, cb.kind, &*cb.shape.0, &pos_ab, self.options.margin, state);
+        if result.is_err() {
+            // Unsupported pairs are excluded when colliders are created; nothing to report.
+            return;
+        }
+        self.candidates.clear();
+        for m in &state.manifolds {
+            let (pose_a, pose_b) = (
+                m.subshape_pos1().map_or(ca.world_pose, |p| ca.world_pose * *p),
+                m.subshape_pos2().map_or(cb.world_pose, |p| cb.world_pose * *p),
+            );
+            let normal = -from_vector(pose_a.rotation * m.local_n1);
+            for p in &m.points {
+                let sub = (u64::from(m.subshape1) << 20) ^ u64::from(m.subshape2);
+                self.candidates.push(Candidate {
+                    point_a: from_vector(pose_a * p.local_p1),
+                    point_b: from_vector(pose_b * p.local_p2),
+                    normal,
+                    distance: p.dist,
+                    feature: (u64::from(p.fid1.0) | (u64::from(p.fid2.0) << 32))
+                        ^ sub.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                });
+            }
+        }
+        if self.candidates.is_empty() {
+            return;
+        }
+        self.stats.touching_pairs += 1;
+        self.stats.raw_points += self.candidates.len();
+        let kept = reduce(&mut self.candidates);
+        for c in &self.candidates[..kept] {
+            self.contacts.push(Contact {
+                collider_a: a,
+                collider_b: b,
+                body_a: ca.attachment,
+                body_b: cb.attachment,
+                point_a: c.point_a,
+                point_b: c.point_b,
+                normal: c.normal,
+                distance: c.distance,
+                feature: c.feature,
+            });
+        }
+    }
+}
+
+fn make_collider(
+    name: String,
+    attachment: Attachment,
+    placement: Transform,
+    built: shape::ParryShape,
+) -> Collider {
+    let local = built.offset.map_or(placement, |offset| placement * offset);
+    let local_pose = to_pose(&local);
+    let aabb = built.shape.compute_aabb(&local_pose);
+    Collider {
+        name,
+        attachment,
+        kind: built.kind,
+        placement,
+        filter: CollisionFilter::default(),
+        material: 0,
+        shape: built.shape,
+        offset: built.offset,
+        local_pose,
+        world_pose: local_pose,
+        aabb,
+    }
+}
+
+/// The filtering rules: never static against static; never two colliders of one body; within
+/// a multibody only with self-collision on, and bodies joined by a joint only if asked; groups
+/// and masks always.
+fn may_collide(
+    a: &Collider,
+    b: &Collider,
+    multibodies: &[MultibodyEntry],
+    options: &CollisionOptions,
+) -> bool {
+    if a.attachment.is_static() && b.attachment.is_static() {
+        return false;
+    }
+    if !a.filter.accepts(&b.filter) {
+        return false;
+    }
+    if let (Attachment::Body { multibody: ma, body: ba }, Attachment::Body { multibody: mb, body: bb }) =
+        (a.attachment, b.attachment)
+    {
+        if ma == mb {
+            let entry = &multibodies[ma];
+            if ba == bb || !entry.self_collision {
+                return false;
+            }
+            let joined = entry.parents[ba] == bb || entry.parents[bb] == ba;
+            if joined && !options.collide_joined_bodies {
+                return false;
+            }
+        }
+    }
+    true
+}
