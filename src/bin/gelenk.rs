@@ -110,7 +110,15 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
     let model = load(path, floating)?;
     let massless = model.massless_subtrees();
     if as_json {
-        let out = json!({"nq": model.nq(), "nv": model.nv(), "mass": model.total_mass(), "joints": joints_json(&model)});
+        let collision: Vec<Value> = collision_geometry(&model)
+            .map(|(g, resolved)| {
+                json!({"body": model.body_name(g.body), "link": g.link, "shape": g.shape.kind_name(),
+                       "parameters": g.shape.summary(), "xyz": g.placement.translation.as_slice(),
+                       "mesh_file": resolved})
+            })
+            .collect();
+        let out = json!({"nq": model.nq(), "nv": model.nv(), "mass": model.total_mass(),
+                         "joints": joints_json(&model), "collision": collision});
         println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
     } else {
         println!(
@@ -139,6 +147,28 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
             );
         }
         println!("total mass: {:.6} kg; {} named frames", model.total_mass(), model.frames().len());
+        let mut geometry = collision_geometry(&model).peekable();
+        if geometry.peek().is_none() {
+            println!("collision geometry: none");
+        } else {
+            println!("collision geometry:");
+            println!("{:<24} {:<24} {:<11} {}", "body", "link", "shape", "parameters");
+        }
+        for (g, resolved) in geometry {
+            let file = match (&g.shape, resolved) {
+                (gelenk::model::Shape::Mesh { .. }, Some(path)) => format!(" -> {path}"),
+                (gelenk::model::Shape::Mesh { .. }, None) => " -> NOT FOUND".to_string(),
+                _ => String::new(),
+            };
+            println!(
+                "{:<24} {:<24} {:<11} {}{}",
+                model.body_name(g.body),
+                g.link,
+                g.shape.kind_name(),
+                g.shape.summary(),
+                file
+            );
+        }
     }
     for i in massless {
         eprintln!(
@@ -147,6 +177,23 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// Collision geometry of the model with, for meshes, the file the URI resolves to (if any).
+fn collision_geometry(
+    model: &gelenk::Model,
+) -> impl Iterator<Item = (&gelenk::model::GeometrySpec, Option<String>)> + '_ {
+    model.geometries().iter().filter(|g| g.role == gelenk::model::GeometryRole::Collision).map(|g| {
+        let resolved = match &g.shape {
+            gelenk::model::Shape::Mesh { uri, .. } => {
+                gelenk::collision::mesh::resolve(&g.link, uri, model.source_dir(), &[])
+                    .ok()
+                    .map(|p| p.display().to_string())
+            }
+            _ => None,
+        };
+        (g, resolved)
+    })
 }
 
 fn vector(

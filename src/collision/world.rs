@@ -277,7 +277,7 @@ impl CollisionWorld {
             shape::build(geometry, &ShapeSource { link: name, model_dir: None, on_body: false }, meshes)?;
         let mut collider = make_collider(name.to_string(), Attachment::World, pose, built);
         collider.world_pose = collider.local_pose;
-        collider.aabb = collider.shape.compute_aabb(&collider.world_pose);
+        collider.aabb = static_aabb(&collider);
         self.colliders.push(collider);
         self.broad.invalidate();
         Ok(self.colliders.len() - 1)
@@ -443,6 +443,26 @@ impl CollisionWorld {
             });
         }
     }
+}
+
+/// The box of static geometry; a half-space whose normal is along a world axis is bounded on
+/// that side (parry bounds no side of any half-space), so bodies far above the ground skip it.
+fn static_aabb(collider: &Collider) -> Aabb {
+    let mut aabb = collider.shape.compute_aabb(&collider.world_pose);
+    if let Some(half_space) = collider.shape.as_halfspace() {
+        let n = from_vector(collider.world_pose.rotation * half_space.normal);
+        let origin = from_vector(collider.world_pose.translation);
+        for axis in 0..3 {
+            if (n[axis].abs() - 1.0).abs() < 1e-12 {
+                if n[axis] > 0.0 {
+                    aabb.maxs[axis] = origin[axis];
+                } else {
+                    aabb.mins[axis] = origin[axis];
+                }
+            }
+        }
+    }
+    aabb
 }
 
 fn make_collider(

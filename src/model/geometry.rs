@@ -79,6 +79,48 @@ pub enum Shape {
     },
 }
 
+impl Shape {
+    /// Lower-case kind name (`box`, `cylinder`, `capsule`, `sphere`, `convex_hull`, `trimesh`,
+    /// `heightfield`, `halfspace`, `mesh`).
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Shape::Box { .. } => "box",
+            Shape::Cylinder { .. } => "cylinder",
+            Shape::Capsule { .. } => "capsule",
+            Shape::Sphere { .. } => "sphere",
+            Shape::ConvexHull { .. } => "convex_hull",
+            Shape::TriMesh { .. } => "trimesh",
+            Shape::HeightField { .. } => "heightfield",
+            Shape::HalfSpace { .. } => "halfspace",
+            Shape::Mesh { .. } => "mesh",
+        }
+    }
+
+    /// The shape's parameters in one line, for people (sizes in m).
+    pub fn summary(&self) -> String {
+        match self {
+            Shape::Box { size } => format!("size {:.4} × {:.4} × {:.4}", size.x, size.y, size.z),
+            Shape::Cylinder { radius, length } | Shape::Capsule { radius, length } => {
+                format!("radius {radius:.4}, length {length:.4}")
+            }
+            Shape::Sphere { radius } => format!("radius {radius:.4}"),
+            Shape::ConvexHull { points } => format!("{} points", points.len()),
+            Shape::TriMesh { vertices, triangles } => {
+                format!("{} vertices, {} triangles", vertices.len(), triangles.len())
+            }
+            Shape::HeightField { heights, size_x, size_y } => {
+                format!("{}×{} samples over {size_x:.3} × {size_y:.3}", heights.nrows(), heights.ncols())
+            }
+            Shape::HalfSpace { normal } => {
+                format!("normal ({:.3}, {:.3}, {:.3})", normal.x, normal.y, normal.z)
+            }
+            Shape::Mesh { uri, scale } => {
+                format!("{uri} (scale {:.4}, {:.4}, {:.4})", scale.x, scale.y, scale.z)
+            }
+        }
+    }
+}
+
 /// A shape attached to a model body.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeometrySpec {
