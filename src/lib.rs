@@ -35,6 +35,8 @@
 
 pub mod algorithms;
 pub mod collision;
+pub mod constraints;
+pub mod solvers;
 pub mod data;
 pub mod error;
 pub mod io;

@@ -42,6 +42,12 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
 
 /// Solves `M x = b` in place (`x` holds b on entry) with the factor of [`factor_mass_matrix`].
 pub fn solve_mass_matrix(model: &Model, data: &Data, x: &mut DVector<f64>) {
+    solve_mass_matrix_slice(model, data, x.as_mut_slice());
+}
+
+/// [`solve_mass_matrix`] on a slice of length nv (a column of a column-major matrix, say).
+pub fn solve_mass_matrix_slice(model: &Model, data: &Data, x: &mut [f64]) {
+    debug_assert_eq!(x.len(), model.nv());
     let h = &data.mass_matrix_factor;
     let lambda = &model.dof_parent;
     let n = model.nv();

@@ -13,7 +13,7 @@ mod rnea;
 pub use aba::aba;
 pub use crba::crba;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
-pub use factor::{factor_mass_matrix, forward_dynamics_crba, solve_mass_matrix};
+pub use factor::{factor_mass_matrix, forward_dynamics_crba, solve_mass_matrix, solve_mass_matrix_slice};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
 pub use kinematics::{forward_kinematics, frame_placement};
 pub use rnea::{generalized_gravity, nonlinear_effects, rnea};

@@ -58,6 +58,45 @@ pub fn add_point_jacobian(
     }
 }
 
+/// Adds `sign · dᵀ J_p` to `row[col..col + nv]`: the rate of the velocity of the point `point`
+/// (world, m) fixed on body `body` along the world direction `direction`. Needs `data.j_world`.
+#[allow(clippy::too_many_arguments)]
+pub fn add_point_direction_row(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    point: &Vec3,
+    direction: &Vec3,
+    sign: f64,
+    row: &mut [f64],
+    col: usize,
+) {
+    let mut k = last_dof_of(model, body);
+    while k != NO_DOF {
+        let column = &data.j_world[k];
+        row[col + k] += sign * direction.dot(&(column.linear + column.angular.cross(point)));
+        k = model.dof_parent[k];
+    }
+}
+
+/// Adds `sign · dᵀ J_ω` to `row[col..col + nv]`: the rate of body `body`'s angular velocity about
+/// the world direction `direction`. Needs `data.j_world`.
+pub fn add_angular_direction_row(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    direction: &Vec3,
+    sign: f64,
+    row: &mut [f64],
+    col: usize,
+) {
+    let mut k = last_dof_of(model, body);
+    while k != NO_DOF {
+        row[col + k] += sign * direction.dot(&data.j_world[k].angular);
+        k = model.dof_parent[k];
+    }
+}
+
 /// Writes the 3×nv contact Jacobian of `contact` (rows: normal, tangent 1, tangent 2; see
 /// [`tangents`]) into `out`, for a contact whose non-static sides belong to multibody
 /// `multibody`, the one described by `model` and `data` (after

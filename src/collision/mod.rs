@@ -42,7 +42,9 @@ pub mod reduce;
 mod shape;
 mod world;
 
-pub use jacobian::{add_point_jacobian, contact_frame, contact_jacobian, tangents};
+pub use jacobian::{
+    add_angular_direction_row, add_point_direction_row, add_point_jacobian, contact_frame, contact_jacobian, tangents,
+};
 pub use mesh::{MeshData, MeshOptions, MissingMeshPolicy};
 pub use reduce::MAX_POINTS_PER_PAIR;
 pub use shape::ShapeKind;

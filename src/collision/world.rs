@@ -411,7 +411,9 @@ impl CollisionWorld {
                 m.subshape_pos2().map_or(cb.world_pose, |p| cb.world_pose * *p),
             );
             let normal = -from_vector(pose_a.rotation * m.local_n1);
-            for p in &m.points {
+            // Parry's polygon clipping keeps every clipped point of the incident face, however far;
+            // only points within the margin are contacts.
+            for p in m.points.iter().filter(|p| p.dist <= self.options.margin) {
                 let sub = (u64::from(m.subshape1) << 20) ^ u64::from(m.subshape2);
                 self.candidates.push(Candidate {
                     point_a: from_vector(pose_a * p.local_p1),

@@ -1,0 +1,112 @@
+//! Contact rows: one unilateral normal row and two friction rows per contact point, with the
+//! target normal velocity from restitution (Newton's law with a threshold, ODE's bounce and
+//! bounce_vel), position stabilisation (ODE's soft_erp with a surface layer) and speculative
+//! approach for contacts still apart, and softness (ODE's soft_cfm).
+
+use super::{ContactBlock, ProblemBuilder, RowLaw, RowOrigin};
+use crate::collision::{add_point_direction_row, tangents, Attachment, Contact};
+use crate::data::Data;
+use crate::model::Model;
+use nalgebra::DVector;
+
+/// Contact parameters of a pair of surfaces (ODE's `dSurfaceParameters`, in SI units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactParameters {
+    /// Coulomb friction coefficient along the first tangent.
+    pub mu: f64,
+    /// Friction coefficient along the second tangent (`None`: isotropic, = `mu`).
+    pub mu2: Option<f64>,
+    /// Coefficient of restitution ε ∈ [0, 1] (ODE's bounce).
+    pub restitution: f64,
+    /// Approach speed (m/s) below which no bounce happens (ODE's bounce_vel).
+    pub bounce_velocity: f64,
+    /// Fraction of the penetration (beyond the surface layer) removed per step, in [0, 1]
+    /// (ODE's soft_erp).
+    pub erp: f64,
+    /// Constraint force mixing (ODE's soft_cfm): the normal row becomes `w = (A + cfm/h) λ + b`,
+    /// a spring-like softness; 0 = hard contact.
+    pub cfm: f64,
+    /// Penetration depth (m) left uncorrected, so that resting contacts stay in contact (ODE's
+    /// contact surface layer).
+    pub surface_layer: f64,
+    /// Upper bound on the stabilisation velocity (m/s) (ODE's contact_max_correcting_vel).
+    pub max_correcting_velocity: f64,
+}
+
+impl Default for ContactParameters {
+    fn default() -> Self {
+        Self {
+            mu: 0.5,
+            mu2: None,
+            restitution: 0.0,
+            bounce_velocity: 0.1,
+            erp: 0.2,
+            cfm: 0.0,
+            surface_layer: 0.001,
+            max_correcting_velocity: f64::INFINITY,
+        }
+    }
+}
+
+impl ContactParameters {
+    /// The target normal velocity u* (m/s) for a contact at signed distance `distance` (m)
+    /// approaching at normal velocity `approach` (m/s, negative = closing) over a step `h` (s):
+    /// a bounce `−ε·approach` if the approach is faster than the threshold and the gap closes
+    /// within the step; otherwise, if apart, the speed that just closes the gap (`−distance/h`,
+    /// negative: a speculative contact lets the bodies approach); if penetrating beyond the
+    /// surface layer, `erp·(depth − layer)/h` (capped); else 0.
+    pub fn target_normal_velocity(&self, distance: f64, approach: f64, h: f64) -> f64 {
+        let stabilization = if distance < -self.surface_layer {
+            (self.erp * (-distance - self.surface_layer) / h).min(self.max_correcting_velocity)
+        } else {
+            0.0
+        };
+        let closes_this_step = distance <= -approach * h;
+        if approach < -self.bounce_velocity && closes_this_step && self.restitution > 0.0 {
+            (-self.restitution * approach).max(stabilization)
+        } else if distance > 0.0 {
+            -distance / h
+        } else {
+            stabilization
+        }
+    }
+}
+
+/// Appends the rows of `contacts` to `builder`. `systems[m]` is the model and data (with
+/// `data.j_world` current) of multibody `m`, whose velocities start at column `offsets[m]`; `v`
+/// is the current velocity of all systems (for the approach speed), `h` the step (s), and
+/// `parameters(contact)` the surface parameters of a contact. Returns nothing; contact `i` of
+/// the slice gets [`RowOrigin::Contact`]`(first_index + i)`.
+#[allow(clippy::too_many_arguments)]
+pub fn add_contact_rows(
+    builder: &mut ProblemBuilder,
+    systems: &[(&Model, &Data)],
+    offsets: &[usize],
+    contacts: &[Contact],
+    first_index: usize,
+    v: &DVector<f64>,
+    h: f64,
+    mut parameters: impl FnMut(&Contact) -> ContactParameters,
+) {
+    for (i, contact) in contacts.iter().enumerate() {
+        let p = parameters(contact);
+        let origin = RowOrigin::Contact(first_index + i);
+        let (t1, t2) = tangents(&contact.normal);
+        let normal_row = builder.len();
+        for (r, direction) in [contact.normal, t1, t2].iter().enumerate() {
+            let law = if r == 0 { RowLaw::Unilateral } else { RowLaw::Friction { contact: builder.contact_count() } };
+            let softness = if r == 0 { p.cfm / h } else { 0.0 };
+            let (_, row) = builder.push_row(law, 0.0, softness, origin);
+            for (side, point, sign) in [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)] {
+                if let Attachment::Body { multibody, body } = side {
+                    let (model, data) = systems[multibody];
+                    add_point_direction_row(model, data, body, &point, direction, sign, row, offsets[multibody]);
+                }
+            }
+        }
+        let approach = builder.row(normal_row).iter().zip(v.iter()).map(|(j, v)| j * v).sum::<f64>();
+        let target = p.target_normal_velocity(contact.distance, approach, h);
+        builder.set_target(normal_row, target);
+        builder.push_contact_block(ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) });
+    }
+}

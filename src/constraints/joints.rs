@@ -1,0 +1,107 @@
+//! Joint rows: position limits (unilateral, with bounce and ODE's StopERP/StopCFM), velocity
+//! motors (a bounded row: target velocity, maximum force — ODE's Vel/FMax) and Coulomb joint
+//! friction (a bounded row with target velocity 0).
+
+use super::{ProblemBuilder, RowLaw, RowOrigin};
+use crate::model::{Joint, Model};
+use nalgebra::DVector;
+
+/// Parameters of joint-limit rows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointLimitParameters {
+    /// Fraction of the limit violation removed per step (ODE's StopERP).
+    pub erp: f64,
+    /// Softness (ODE's StopCFM): the row gets `cfm/h` on the diagonal.
+    pub cfm: f64,
+    /// Restitution at the stop (ODE's Bounce), ε ∈ [0, 1].
+    pub restitution: f64,
+    /// Approach speed below which the stop does not bounce (rad/s or m/s).
+    pub bounce_velocity: f64,
+    /// A limit row is created when the coordinate is within this distance of the stop (rad or m).
+    pub margin: f64,
+}
+
+impl Default for JointLimitParameters {
+    fn default() -> Self {
+        Self { erp: 0.2, cfm: 0.0, restitution: 0.0, bounce_velocity: 0.1, margin: 0.02 }
+    }
+}
+
+fn has_scalar_coordinates(joint: &Joint) -> bool {
+    !matches!(joint, Joint::Ball | Joint::Free | Joint::Fixed) && joint.nq() == joint.nv()
+}
+
+/// Appends a row for every active position limit of `model` at configuration `q` and velocity
+/// `v` (joints whose coordinates are scalars: hinge, slider, universal, hinge2, planar). A lower
+/// limit row has J = e_k (its impulse pushes the coordinate up), an upper one J = −e_k. `col` is
+/// the column offset of this model's velocities; `h` the step (s).
+pub fn add_joint_limit_rows(
+    builder: &mut ProblemBuilder,
+    model: &Model,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    col: usize,
+    h: f64,
+    p: &JointLimitParameters,
+) {
+    for i in 1..model.nbodies() {
+        let joint = model.joint(i);
+        if !has_scalar_coordinates(joint) {
+            continue;
+        }
+        for k in 0..joint.nv() {
+            let (qi, vi) = (model.idx_q(i) + k, model.idx_v(i) + k);
+            let (lo, hi) = (model.lower_position_limit()[qi], model.upper_position_limit()[qi]);
+            for (distance, sign, origin) in
+                [(q[qi] - lo, 1.0, RowOrigin::LowerLimit(vi)), (hi - q[qi], -1.0, RowOrigin::UpperLimit(vi))]
+            {
+                if !distance.is_finite() || distance > p.margin {
+                    continue;
+                }
+                let approach = sign * v[vi];
+                let target = limit_target(distance, approach, h, p);
+                let (_, row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
+                row[col + vi] = sign;
+            }
+        }
+    }
+}
+
+fn limit_target(distance: f64, approach: f64, h: f64, p: &JointLimitParameters) -> f64 {
+    if approach < -p.bounce_velocity && distance <= -approach * h && p.restitution > 0.0 {
+        (-p.restitution * approach).max(p.erp * (-distance).max(0.0) / h)
+    } else if distance > 0.0 {
+        -distance / h
+    } else {
+        p.erp * -distance / h
+    }
+}
+
+/// Appends a velocity motor on velocity coordinate `dof` (index into v, plus `col`): drives the
+/// coordinate's rate to `target_velocity` with at most `max_force` (N·m or N) over the step `h`.
+pub fn add_motor_row(
+    builder: &mut ProblemBuilder,
+    dof: usize,
+    col: usize,
+    target_velocity: f64,
+    max_force: f64,
+    h: f64,
+) {
+    let bound = max_force.abs() * h;
+    let (_, row) =
+        builder.push_row(RowLaw::Bounded { lo: -bound, hi: bound }, target_velocity, 0.0, RowOrigin::Motor(dof));
+    row[col + dof] = 1.0;
+}
+
+/// Appends a Coulomb friction row for every dof of `model` with positive friction
+/// ([`Model::friction`], N·m or N): the impulse opposing the dof's motion is at most friction·h.
+pub fn add_joint_friction_rows(builder: &mut ProblemBuilder, model: &Model, col: usize, h: f64) {
+    for (k, &f) in model.friction().iter().enumerate() {
+        if f > 0.0 {
+            let bound = f * h;
+            let (_, row) =
+                builder.push_row(RowLaw::Bounded { lo: -bound, hi: bound }, 0.0, 0.0, RowOrigin::JointFriction(k));
+            row[col + k] = 1.0;
+        }
+    }
+}

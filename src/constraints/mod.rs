@@ -1,0 +1,178 @@
+//! Constraints as one velocity-level complementarity problem per step (Stewart–Trinkle,
+//! Anitescu–Potra). With the free velocity `v_free = v + h M⁻¹(τ − C v − g)` and constraint rows
+//! `J`, impulses `λ` give `v⁺ = v_free + M⁻¹ Jᵀ λ`, and the row velocities are
+//!
+//! `w = (A + R) λ + b`,  `A = J M⁻¹ Jᵀ` (the Delassus matrix),  `b = J v_free − u*`,
+//!
+//! where `u*` is each row's target velocity (restitution, position stabilisation, motor speed)
+//! and `R` a diagonal regularisation (constraint softness, ODE's CFM). Each row obeys a
+//! [`RowLaw`]; contacts tie one normal and two friction rows into a [`ContactBlock`] whose
+//! friction is an exact cone or a pyramid ([`FrictionModel`]).
+//!
+//! The [`ConstraintProblem`] is plain data: every solver reads the same struct, the residuals
+//! are computed from it by one function ([`crate::solvers::residuals`]), and it can be written to
+//! files for QP-solver regression tests.
+
+mod assemble;
+mod contact;
+mod joints;
+mod loops;
+
+pub use assemble::{assemble_single, ProblemBuilder};
+pub use contact::{add_contact_rows, ContactParameters};
+pub use joints::{add_joint_friction_rows, add_joint_limit_rows, add_motor_row, JointLimitParameters};
+pub use loops::{add_loop_closure_rows, loop_error, LoopClosure, LoopKind};
+
+use nalgebra::{DMatrix, DVector};
+
+/// The law a row's impulse `λ_i` and velocity `w_i` obey.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RowLaw {
+    /// Equality (loop closures): `w_i = 0`, `λ_i` free.
+    Bilateral,
+    /// Signorini (contact normals, joint limits): `λ_i ≥ 0`, `w_i ≥ 0`, `λ_i w_i = 0`.
+    Unilateral,
+    /// Box (motors, joint friction): `lo ≤ λ_i ≤ hi`; `w_i = 0` strictly inside, `w_i ≥ 0` at
+    /// `lo`, `w_i ≤ 0` at `hi` (N·s).
+    Bounded {
+        /// Lower bound (N·s, may be −∞).
+        lo: f64,
+        /// Upper bound (N·s, may be +∞).
+        hi: f64,
+    },
+    /// A friction row of contact block `contact` (its bound depends on the normal impulse).
+    Friction {
+        /// Index into [`ConstraintProblem::contacts`].
+        contact: usize,
+    },
+}
+
+/// How friction bounds the tangential impulse of a contact.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrictionModel {
+    /// The exact Coulomb cone `(λ₁/μ)² + (λ₂/μ₂)² ≤ λ_n²`.
+    Cone,
+    /// The inscribed pyramid: the convex hull of `λ_n (μ cos θ_j, μ₂ sin θ_j)`, `θ_j = 2πj/k`,
+    /// `k = facets ≥ 3`. Lemke always solves this form.
+    Pyramid {
+        /// Number of facets (directions) k.
+        facets: usize,
+    },
+}
+
+/// One contact's rows: normal at `normal`, tangents at `normal + 1` and `normal + 2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactBlock {
+    /// Row index of the normal.
+    pub normal: usize,
+    /// Friction coefficient along the first tangent.
+    pub mu: f64,
+    /// Friction coefficient along the second tangent (= `mu` when isotropic).
+    pub mu2: f64,
+}
+
+impl ContactBlock {
+    /// Row indices (normal, tangent 1, tangent 2).
+    pub fn rows(&self) -> (usize, usize, usize) {
+        (self.normal, self.normal + 1, self.normal + 2)
+    }
+}
+
+/// What created a row, for diagnostics.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowOrigin {
+    /// Normal or friction row of a contact (index into the collision contacts).
+    Contact(usize),
+    /// Lower position limit of a dof.
+    LowerLimit(usize),
+    /// Upper position limit of a dof.
+    UpperLimit(usize),
+    /// Velocity motor of a dof.
+    Motor(usize),
+    /// Coulomb friction of a dof.
+    JointFriction(usize),
+    /// Loop-closure joint (index given by the caller).
+    Loop(usize),
+    /// Anything else.
+    Other,
+}
+
+/// A velocity-level constraint problem: `w = (A + R) λ + b` with the laws of each row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConstraintProblem {
+    /// Constraint Jacobian J (rows × nv).
+    pub jacobian: DMatrix<f64>,
+    /// M⁻¹ Jᵀ (nv × rows): the velocity change per unit impulse of each row.
+    pub minv_jt: DMatrix<f64>,
+    /// Delassus matrix A = J M⁻¹ Jᵀ (rows × rows, symmetric positive semi-definite).
+    pub delassus: DMatrix<f64>,
+    /// Diagonal regularisation R (m/s per N·s), from constraint softness.
+    pub regularization: DVector<f64>,
+    /// b = J v_free − u* (m/s or rad/s).
+    pub bias: DVector<f64>,
+    /// Target velocities u* of each row (kept for diagnostics and export).
+    pub target: DVector<f64>,
+    /// Law of each row.
+    pub laws: Vec<RowLaw>,
+    /// Contact blocks.
+    pub contacts: Vec<ContactBlock>,
+    /// Friction model of every contact block.
+    pub friction: FrictionModel,
+    /// Origin of each row.
+    pub origins: Vec<RowOrigin>,
+}
+
+impl Default for ConstraintProblem {
+    fn default() -> Self {
+        Self {
+            jacobian: DMatrix::zeros(0, 0),
+            minv_jt: DMatrix::zeros(0, 0),
+            delassus: DMatrix::zeros(0, 0),
+            regularization: DVector::zeros(0),
+            bias: DVector::zeros(0),
+            target: DVector::zeros(0),
+            laws: Vec::new(),
+            contacts: Vec::new(),
+            friction: FrictionModel::Cone,
+            origins: Vec::new(),
+        }
+    }
+}
+
+impl ConstraintProblem {
+    /// Number of rows.
+    pub fn rows(&self) -> usize {
+        self.laws.len()
+    }
+
+    /// Row velocities `w = (A + R) λ + b` written into `w`.
+    pub fn velocities(&self, lambda: &DVector<f64>, w: &mut DVector<f64>) {
+        w.copy_from(&self.bias);
+        w.gemv(1.0, &self.delassus, lambda, 1.0);
+        w.zip_apply(&self.regularization.component_mul(lambda), |wi, r| *wi += r);
+    }
+
+    /// A problem given directly by its matrix and vectors (no Jacobian): for tests, imported
+    /// problems and solver benchmarks. `jacobian` and `minv_jt` are left empty.
+    pub fn from_parts(
+        delassus: DMatrix<f64>,
+        bias: DVector<f64>,
+        laws: Vec<RowLaw>,
+        contacts: Vec<ContactBlock>,
+        friction: FrictionModel,
+    ) -> Self {
+        let n = bias.len();
+        Self {
+            jacobian: DMatrix::zeros(n, 0),
+            minv_jt: DMatrix::zeros(0, n),
+            delassus,
+            regularization: DVector::zeros(n),
+            target: DVector::zeros(n),
+            bias,
+            origins: vec![RowOrigin::Other; laws.len()],
+            laws,
+            contacts,
+            friction,
+        }
+    }
+}

@@ -1,0 +1,94 @@
+//! A chain of solvers with a fallback policy: each runs in turn until one returns impulses whose
+//! certifying residual is within the chain's tolerance; every failure and its reason is kept.
+
+use super::{residuals, ConstraintSolver, Residuals, SolverError};
+use crate::constraints::ConstraintProblem;
+use nalgebra::DVector;
+
+/// A solver that was tried and did not deliver, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fallback {
+    /// Solver name.
+    pub solver: String,
+    /// The error or the residual miss.
+    pub reason: String,
+}
+
+/// The outcome of a chain solve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChainReport {
+    /// The solver whose answer was taken.
+    pub solver: String,
+    /// Its iterations or pivots.
+    pub iterations: usize,
+    /// Residuals of the answer.
+    pub residuals: Residuals,
+    /// Solvers tried before it.
+    pub fallbacks: Vec<Fallback>,
+    /// The solver's remark, if any.
+    pub note: Option<String>,
+}
+
+/// Solvers tried in order, with the residual tolerance (m/s) an answer must meet.
+pub struct SolverChain {
+    /// The solvers, first choice first.
+    pub solvers: Vec<Box<dyn ConstraintSolver>>,
+    /// Accepted certifying residual (m/s).
+    pub tolerance: f64,
+    /// Take the last solver's answer even above the tolerance (recorded as a fallback reason)
+    /// rather than failing the step.
+    pub accept_last: bool,
+    w: DVector<f64>,
+    candidate: DVector<f64>,
+}
+
+impl SolverChain {
+    /// A chain of `solvers` with residual tolerance `tolerance` (m/s).
+    pub fn new(solvers: Vec<Box<dyn ConstraintSolver>>, tolerance: f64) -> Self {
+        Self { solvers, tolerance, accept_last: false, w: DVector::zeros(0), candidate: DVector::zeros(0) }
+    }
+
+    /// Solves `problem`; `lambda` holds the warm start on entry and the answer on success.
+    pub fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<ChainReport, SolverError> {
+        let mut fallbacks = Vec::new();
+        let count = self.solvers.len();
+        for (k, solver) in self.solvers.iter_mut().enumerate() {
+            self.candidate.clone_from(lambda);
+            match solver.solve(problem, &mut self.candidate) {
+                Ok(info) => {
+                    let r = residuals(problem, &self.candidate, &mut self.w);
+                    let certified = solver.certify(&r);
+                    let last = k + 1 == count;
+                    if certified <= self.tolerance || (last && self.accept_last) {
+                        if certified > self.tolerance {
+                            fallbacks.push(Fallback {
+                                solver: solver.name().to_string(),
+                                reason: format!("accepted above tolerance: residual {certified:.3e}"),
+                            });
+                        }
+                        lambda.clone_from(&self.candidate);
+                        return Ok(ChainReport {
+                            solver: solver.name().to_string(),
+                            iterations: info.iterations,
+                            residuals: r,
+                            fallbacks,
+                            note: info.note,
+                        });
+                    }
+                    fallbacks.push(Fallback {
+                        solver: solver.name().to_string(),
+                        reason: format!("residual {certified:.3e} above tolerance {:.1e}", self.tolerance),
+                    });
+                }
+                Err(e) => fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() }),
+            }
+        }
+        Err(SolverError::AllFailed(
+            fallbacks.iter().map(|f| format!("{}: {}", f.solver, f.reason)).collect::<Vec<_>>().join("; "),
+        ))
+    }
+}

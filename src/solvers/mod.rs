@@ -1,0 +1,109 @@
+//! Solvers of a [`ConstraintProblem`] behind one trait: our own Lemke pivoting method on the LCP
+//! of the pyramid-friction formulation, clarabel's interior-point method on the convex
+//! (Anitescu) cone program, and projected Gauss–Seidel (fast, approximate). Residuals are
+//! computed outside the solvers by [`residuals()`], and a [`SolverChain`] falls back to the next
+//! solver when one fails or misses its tolerance, recording why.
+
+mod chain;
+mod conic;
+mod lemke;
+mod pgs;
+pub mod residuals;
+
+pub use chain::{ChainReport, Fallback, SolverChain};
+pub use conic::{cone_program, ClarabelSolver, ConeProgram};
+pub use lemke::{lcp_of, lemke, Lcp, LemkeOptions, LemkeSolver};
+pub use pgs::PgsSolver;
+pub use residuals::{residuals, QpResiduals, Residuals};
+
+use crate::constraints::ConstraintProblem;
+use nalgebra::DVector;
+use thiserror::Error;
+
+/// Why a solver returned no solution.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SolverError {
+    /// The problem's sizes or numbers are inconsistent.
+    #[error("invalid problem: {0}")]
+    InvalidProblem(String),
+    /// Lemke's method found an unbounded ray: the LCP has no solution it can reach.
+    #[error("Lemke: ray termination after {pivots} pivots (no solution reachable)")]
+    LemkeRay {
+        /// Pivots done.
+        pivots: usize,
+    },
+    /// Lemke's method ran out of pivots.
+    #[error("Lemke: pivot limit {pivots} reached")]
+    PivotLimit {
+        /// The limit.
+        pivots: usize,
+    },
+    /// A solution was found but its residual is above the tolerance.
+    #[error("{solver}: residual {residual:.3e} above tolerance {tolerance:.1e}")]
+    Inaccurate {
+        /// Solver name.
+        solver: String,
+        /// Residual reached (m/s).
+        residual: f64,
+        /// Tolerance asked (m/s).
+        tolerance: f64,
+    },
+    /// clarabel stopped without a solution.
+    #[error("clarabel: {status}")]
+    Clarabel {
+        /// clarabel's status.
+        status: String,
+    },
+    /// Every solver of a chain failed; the reasons in order.
+    #[error("every solver failed: {0}")]
+    AllFailed(String),
+}
+
+/// Facts about one solve.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SolveInfo {
+    /// Iterations (PGS sweeps, clarabel iterations) or pivots (Lemke).
+    pub iterations: usize,
+    /// Remarks (clarabel's AlmostSolved, Lemke's pyramid approximation of a cone, ...).
+    pub note: Option<String>,
+}
+
+/// A solver of constraint problems.
+pub trait ConstraintSolver {
+    /// Short name (`lemke`, `clarabel`, `pgs`).
+    fn name(&self) -> &str;
+    /// Solves `problem`, writing impulses (N·s) into `lambda`, which holds a warm start on entry
+    /// (resized and zeroed by the solver if its length is wrong).
+    fn solve(&mut self, problem: &ConstraintProblem, lambda: &mut DVector<f64>) -> Result<SolveInfo, SolverError>;
+    /// The residual measure (m/s) that certifies this solver's formulation.
+    fn certify(&self, residuals: &Residuals) -> f64 {
+        residuals.exact()
+    }
+}
+
+/// Checks the problem's sizes and finiteness once, for every solver.
+pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverError> {
+    let n = problem.rows();
+    let bad = |what: String| Err(SolverError::InvalidProblem(what));
+    if problem.delassus.shape() != (n, n) || problem.bias.len() != n || problem.regularization.len() != n {
+        return bad(format!("{n} rows but A is {:?} and b has {}", problem.delassus.shape(), problem.bias.len()));
+    }
+    if !problem.delassus.iter().chain(problem.bias.iter()).chain(problem.regularization.iter()).all(|x| x.is_finite())
+    {
+        return bad("A, b or R holds NaN or infinity".into());
+    }
+    for c in &problem.contacts {
+        if c.normal + 2 >= n {
+            return bad(format!("contact block at row {} exceeds {n} rows", c.normal));
+        }
+        if !(c.mu >= 0.0 && c.mu2 >= 0.0 && c.mu.is_finite() && c.mu2.is_finite()) {
+            return bad(format!("contact at row {}: friction coefficients must be finite and ≥ 0", c.normal));
+        }
+    }
+    if let crate::constraints::FrictionModel::Pyramid { facets } = problem.friction {
+        if facets < 3 {
+            return bad(format!("a friction pyramid needs at least 3 facets, got {facets}"));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,150 @@
+//! Residuals of a candidate solution λ of a [`ConstraintProblem`], computed the same way for
+//! every solver. All are in velocity units (m/s or rad/s): impulses are scaled by the row's
+//! diagonal `A_ii + R_ii`, so "1e-9" means the same for every row.
+
+use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
+use nalgebra::DVector;
+
+/// How far λ is from solving the problem, per law (all ≥ 0; 0 = exact).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Residuals {
+    /// Signorini: max over unilateral rows of |min(d_i λ_i, w_i)| (the natural-map residual; 0 iff
+    /// `0 ≤ λ ⟂ w ≥ 0`).
+    pub signorini: f64,
+    /// Max |λ_i w_i| over unilateral rows (N·s · m/s): the LCP complementarity product.
+    pub complementarity: f64,
+    /// Max |w_i| over bilateral rows.
+    pub bilateral: f64,
+    /// Max natural-map residual |d_i λ_i − d_i clamp(λ_i − w_i/d_i, lo, hi)| over bounded rows.
+    pub bounded: f64,
+    /// Max violation of the friction set (cone or pyramid, as the problem states) by λ_t.
+    pub friction_feasibility: f64,
+    /// Max dissipation gap: how much more power a friction impulse in the friction set could
+    /// dissipate than λ_t does, per unit of the friction bound (0 iff friction opposes slip).
+    pub dissipation: f64,
+    /// KKT residual of the convex (Anitescu) relaxation: per contact, the violation of
+    /// `w ∈ K*` (dual cone: `w_n ≥ ‖(μ w₁, μ₂ w₂)‖`) and the natural-map residual of
+    /// `0 ≤ λ_n ⟂ w_n − ‖(μ w₁, μ₂ w₂)‖ ≥ 0`. Sliding contacts satisfy this with `w_n > 0`: the
+    /// relaxation's known "hovering".
+    pub conic_kkt: f64,
+    /// QP residuals (qpsolvers' definitions) of the frictionless problem, with duals recovered
+    /// from w; `None` when some contact has friction.
+    pub qp: Option<QpResiduals>,
+}
+
+/// Primal, dual and duality-gap residuals of a QP, as qpsolvers defines them.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct QpResiduals {
+    /// Max constraint violation.
+    pub primal: f64,
+    /// ‖P x + q + Gᵀ z + Aᵀ y‖∞.
+    pub dual: f64,
+    /// |xᵀ P x + qᵀ x + hᵀ z + bᵀ y|.
+    pub gap: f64,
+}
+
+impl Residuals {
+    /// The residual that certifies the exact complementarity formulation (Lemke, PGS).
+    pub fn exact(&self) -> f64 {
+        self.signorini.max(self.bilateral).max(self.bounded).max(self.friction_feasibility).max(self.dissipation)
+    }
+    /// The residual that certifies the convex relaxation (clarabel).
+    pub fn convex(&self) -> f64 {
+        self.conic_kkt.max(self.bilateral).max(self.bounded).max(self.friction_feasibility).max(self.dissipation)
+    }
+}
+
+/// The pyramid's facet normals in the (λ₁/μ, λ₂/μ₂) plane and the facet offset cos(π/k).
+pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
+    let angle = std::f64::consts::PI * (2 * j + 1) as f64 / k as f64;
+    (angle.cos(), angle.sin())
+}
+
+/// Computes every residual of λ for `problem`. `w` is scratch space (resized if needed).
+pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVector<f64>) -> Residuals {
+    let n = problem.rows();
+    if w.len() != n {
+        *w = DVector::zeros(n);
+    }
+    problem.velocities(lambda, w);
+    let d = |i: usize| (problem.delassus[(i, i)] + problem.regularization[i]).max(f64::MIN_POSITIVE);
+    let mut r = Residuals::default();
+    let frictionless = problem.contacts.iter().all(|c| c.mu == 0.0 && c.mu2 == 0.0);
+    let mut qp = QpResiduals::default();
+    let mut gap = 0.0;
+    for i in 0..n {
+        let (li, wi, di) = (lambda[i], w[i], d(i));
+        match problem.laws[i] {
+            RowLaw::Unilateral => {
+                r.signorini = r.signorini.max((di * li).min(wi).abs());
+                r.complementarity = r.complementarity.max((li * wi).abs());
+                qp.primal = qp.primal.max(-li);
+                qp.dual = qp.dual.max(-wi);
+                gap += li * wi;
+            }
+            RowLaw::Bilateral => {
+                r.bilateral = r.bilateral.max(wi.abs());
+                qp.dual = qp.dual.max(wi.abs());
+            }
+            RowLaw::Bounded { lo, hi } => {
+                let projected = (li - wi / di).clamp(lo, hi);
+                r.bounded = r.bounded.max(di * (li - projected).abs());
+                qp.primal = qp.primal.max(lo - li).max(li - hi);
+                let dual = if li <= lo { (-wi).max(0.0) } else if li >= hi { wi.max(0.0) } else { wi.abs() };
+                qp.dual = qp.dual.max(dual);
+                gap += if li <= lo || li >= hi { li * wi } else { 0.0 };
+            }
+            RowLaw::Friction { .. } => {}
+        }
+    }
+    for c in &problem.contacts {
+        let (n_row, t1, t2) = c.rows();
+        let (ln, l1, l2) = (lambda[n_row], lambda[t1], lambda[t2]);
+        let (wn, w1, w2) = (w[n_row], w[t1], w[t2]);
+        let scale = d(n_row);
+        // Friction set in scaled coordinates s = (λ₁/μ, λ₂/μ₂).
+        let scaled = |x: f64, mu: f64| if mu > 0.0 { x / mu } else { 0.0 };
+        let (s1, s2) = (scaled(l1, c.mu), scaled(l2, c.mu2));
+        let zero_mu_excess =
+            (if c.mu > 0.0 { 0.0 } else { l1.abs() }).max(if c.mu2 > 0.0 { 0.0 } else { l2.abs() });
+        let violation = match problem.friction {
+            FrictionModel::Cone => (s1.hypot(s2) - ln.max(0.0)).max(0.0),
+            FrictionModel::Pyramid { facets } => (0..facets)
+                .map(|j| {
+                    let (nx, ny) = pyramid_facet(facets, j);
+                    nx * s1 + ny * s2 - (std::f64::consts::PI / facets as f64).cos() * ln.max(0.0)
+                })
+                .fold(0.0, f64::max),
+        };
+        let violation = (violation * c.mu.max(c.mu2)).max(zero_mu_excess) * scale;
+        r.friction_feasibility = r.friction_feasibility.max(violation);
+        // Dissipation gap: max over the friction set of −w_t·f, minus −w_t·λ_t, per unit bound.
+        let (m1, m2) = (c.mu * w1, c.mu2 * w2);
+        let best = ln.max(0.0)
+            * match problem.friction {
+                FrictionModel::Cone => m1.hypot(m2),
+                FrictionModel::Pyramid { facets } => (0..facets)
+                    .map(|j| {
+                        let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
+                        -(m1 * t.cos() + m2 * t.sin())
+                    })
+                    .fold(f64::NEG_INFINITY, f64::max),
+            };
+        let bound = c.mu.max(c.mu2) * ln.max(0.0);
+        if bound > 0.0 {
+            r.dissipation = r.dissipation.max(((best + w1 * l1 + w2 * l2) / bound).abs());
+        }
+        // Convex relaxation (Anitescu): w ∈ K* (w_n ≥ ‖(μ w₁, μ₂ w₂)‖) and, per block,
+        // λ_n (w_n − ‖(μ w₁, μ₂ w₂)‖) = 0 (friction opposing slip is the dissipation term).
+        let surplus = wn - m1.hypot(m2);
+        r.conic_kkt = r.conic_kkt.max((-surplus).max(0.0)).max((scale * ln).min(surplus).abs());
+        if frictionless {
+            qp.primal = qp.primal.max(l1.abs()).max(l2.abs());
+        }
+    }
+    if frictionless {
+        qp.gap = gap.abs();
+        r.qp = Some(qp);
+    }
+    r
+}
