@@ -36,12 +36,12 @@
 pub mod algorithms;
 pub mod collision;
 pub mod constraints;
-pub mod solvers;
 pub mod data;
 pub mod error;
 pub mod io;
 pub mod math;
 pub mod model;
+pub mod solvers;
 pub mod state;
 
 /// The README's examples are compiled and run as doctests.

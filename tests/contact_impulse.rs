@@ -71,7 +71,13 @@ fn single_contact_impulse_equals_the_closed_form() {
     // Velocities: A and B moving towards each other and spinning.
     let v = DVector::from_vec(vec![0.3, -0.2, -1.1, 0.5, -0.7, 0.2, -0.1, 0.4, 0.6, 0.3, 0.1, -0.4]);
     let epsilon = 0.5;
-    let params = ContactParameters { mu: 0.0, restitution: epsilon, bounce_velocity: 0.0, erp: 0.0, ..Default::default() };
+    let params = ContactParameters {
+        mu: 0.0,
+        restitution: epsilon,
+        bounce_velocity: 0.0,
+        erp: 0.0,
+        ..Default::default()
+    };
     let h = 1e-3;
 
     compute_joint_jacobians(&model, &mut data, &q).unwrap();
@@ -109,16 +115,29 @@ fn single_contact_impulse_equals_the_closed_form() {
     let closed_form = -(1.0 + epsilon) * n.dot(&v_rel) / denominator;
     assert!(n.dot(&v_rel) < 0.0, "bodies approach");
 
-    let mut solvers: Vec<Box<dyn ConstraintSolver>> =
-        vec![Box::new(LemkeSolver::default()), Box::new(ClarabelSolver::default()), Box::new(PgsSolver::default())];
+    let mut solvers: Vec<Box<dyn ConstraintSolver>> = vec![
+        Box::new(LemkeSolver::default()),
+        Box::new(ClarabelSolver::default()),
+        Box::new(PgsSolver::default()),
+    ];
     for solver in &mut solvers {
         let mut lambda = DVector::zeros(problem.rows());
         solver.solve(&problem, &mut lambda).unwrap();
         let error = (lambda[0] - closed_form).abs() / closed_form.abs();
-        assert!(error < 1e-12 || (solver.name() == "clarabel" && error < 1e-9), "{}: {} vs {closed_form}", solver.name(), lambda[0]);
+        assert!(
+            error < 1e-12 || (solver.name() == "clarabel" && error < 1e-9),
+            "{}: {} vs {closed_form}",
+            solver.name(),
+            lambda[0]
+        );
         let v_after = &v + &problem.minv_jt * &lambda;
         let u_before = problem.jacobian.row(0).dot(&v.transpose());
         let u_after = problem.jacobian.row(0).dot(&v_after.transpose());
-        assert!((u_after + epsilon * u_before).abs() < 1e-9, "{}: {u_after} vs {}", solver.name(), -epsilon * u_before);
+        assert!(
+            (u_after + epsilon * u_before).abs() < 1e-9,
+            "{}: {u_after} vs {}",
+            solver.name(),
+            -epsilon * u_before
+        );
     }
 }

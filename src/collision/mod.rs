@@ -43,7 +43,8 @@ mod shape;
 mod world;
 
 pub use jacobian::{
-    add_angular_direction_row, add_point_direction_row, add_point_jacobian, contact_frame, contact_jacobian, tangents,
+    add_angular_direction_row, add_point_direction_row, add_point_jacobian, contact_frame, contact_jacobian,
+    tangents,
 };
 pub use mesh::{MeshData, MeshOptions, MissingMeshPolicy};
 pub use reduce::MAX_POINTS_PER_PAIR;

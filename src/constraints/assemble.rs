@@ -65,7 +65,13 @@ impl ProblemBuilder {
 
     /// Appends a row and returns its index and its Jacobian row (zeroed, nv entries) to fill.
     /// `target` is the row's target velocity u*, `softness` its regularisation R_ii.
-    pub fn push_row(&mut self, law: RowLaw, target: f64, softness: f64, origin: RowOrigin) -> (usize, &mut [f64]) {
+    pub fn push_row(
+        &mut self,
+        law: RowLaw,
+        target: f64,
+        softness: f64,
+        origin: RowOrigin,
+    ) -> (usize, &mut [f64]) {
         let index = self.laws.len();
         self.laws.push(law);
         self.targets.push(target);

@@ -94,13 +94,28 @@ pub fn add_contact_rows(
         let (t1, t2) = tangents(&contact.normal);
         let normal_row = builder.len();
         for (r, direction) in [contact.normal, t1, t2].iter().enumerate() {
-            let law = if r == 0 { RowLaw::Unilateral } else { RowLaw::Friction { contact: builder.contact_count() } };
+            let law = if r == 0 {
+                RowLaw::Unilateral
+            } else {
+                RowLaw::Friction { contact: builder.contact_count() }
+            };
             let softness = if r == 0 { p.cfm / h } else { 0.0 };
             let (_, row) = builder.push_row(law, 0.0, softness, origin);
-            for (side, point, sign) in [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)] {
+            for (side, point, sign) in
+                [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
+            {
                 if let Attachment::Body { multibody, body } = side {
                     let (model, data) = systems[multibody];
-                    add_point_direction_row(model, data, body, &point, direction, sign, row, offsets[multibody]);
+                    add_point_direction_row(
+                        model,
+                        data,
+                        body,
+                        &point,
+                        direction,
+                        sign,
+                        row,
+                        offsets[multibody],
+                    );
                 }
             }
         }

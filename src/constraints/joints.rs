@@ -88,8 +88,12 @@ pub fn add_motor_row(
     h: f64,
 ) {
     let bound = max_force.abs() * h;
-    let (_, row) =
-        builder.push_row(RowLaw::Bounded { lo: -bound, hi: bound }, target_velocity, 0.0, RowOrigin::Motor(dof));
+    let (_, row) = builder.push_row(
+        RowLaw::Bounded { lo: -bound, hi: bound },
+        target_velocity,
+        0.0,
+        RowOrigin::Motor(dof),
+    );
     row[col + dof] = 1.0;
 }
 
@@ -99,8 +103,12 @@ pub fn add_joint_friction_rows(builder: &mut ProblemBuilder, model: &Model, col:
     for (k, &f) in model.friction().iter().enumerate() {
         if f > 0.0 {
             let bound = f * h;
-            let (_, row) =
-                builder.push_row(RowLaw::Bounded { lo: -bound, hi: bound }, 0.0, 0.0, RowOrigin::JointFriction(k));
+            let (_, row) = builder.push_row(
+                RowLaw::Bounded { lo: -bound, hi: bound },
+                0.0,
+                0.0,
+                RowOrigin::JointFriction(k),
+            );
             row[col + k] = 1.0;
         }
     }

@@ -84,7 +84,9 @@ impl SolverChain {
                         reason: format!("residual {certified:.3e} above tolerance {:.1e}", self.tolerance),
                     });
                 }
-                Err(e) => fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() }),
+                Err(e) => {
+                    fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() })
+                }
             }
         }
         Err(SolverError::AllFailed(

@@ -55,7 +55,8 @@ pub fn cone_program(problem: &ConstraintProblem) -> ConeProgram {
     let p = CscMatrix::new(n, n, colptr, rowval, nzval);
     // Constraint rows as (entries, b) grouped by cone kind.
     type Row = (Vec<(usize, f64)>, f64);
-    let (mut zero, mut nonneg, mut soc): (Vec<Row>, Vec<Row>, Vec<[Row; 3]>) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut zero, mut nonneg, mut soc): (Vec<Row>, Vec<Row>, Vec<[Row; 3]>) =
+        (Vec::new(), Vec::new(), Vec::new());
     for i in 0..n {
         match problem.laws[i] {
             RowLaw::Unilateral => {
@@ -165,7 +166,11 @@ impl ConstraintSolver for ClarabelSolver {
         "clarabel"
     }
 
-    fn solve(&mut self, problem: &ConstraintProblem, lambda: &mut DVector<f64>) -> Result<SolveInfo, SolverError> {
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError> {
         check_problem(problem)?;
         let n = problem.rows();
         if n == 0 {
@@ -182,13 +187,16 @@ impl ConstraintSolver for ClarabelSolver {
             tol_ktratio: 1e-8,
             ..DefaultSettings::default()
         };
-        let mut solver = DefaultSolver::new(&program.p, &program.q, &program.a, &program.b, &program.cones, settings)
-            .map_err(|e| SolverError::Clarabel { status: format!("setup failed: {e:?}") })?;
+        let mut solver =
+            DefaultSolver::new(&program.p, &program.q, &program.a, &program.b, &program.cones, settings)
+                .map_err(|e| SolverError::Clarabel { status: format!("setup failed: {e:?}") })?;
         solver.solve();
         let status = solver.solution.status;
         let note = match status {
             SolverStatus::Solved => None,
-            SolverStatus::AlmostSolved if self.accept_almost_solved => Some("clarabel: almost solved".to_string()),
+            SolverStatus::AlmostSolved if self.accept_almost_solved => {
+                Some("clarabel: almost solved".to_string())
+            }
             other => return Err(SolverError::Clarabel { status: format!("{other:?}") }),
         };
         *lambda = DVector::from_column_slice(&solver.solution.x);

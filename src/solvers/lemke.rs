@@ -135,7 +135,11 @@ pub fn lcp_of(problem: &ConstraintProblem, facets: usize) -> Lcp {
 }
 
 /// Solves the LCP `w = M z + q ⟂ z ≥ 0` by Lemke's method; returns z and the number of pivots.
-pub fn lemke(m: &DMatrix<f64>, q: &DVector<f64>, options: &LemkeOptions) -> Result<(DVector<f64>, usize), SolverError> {
+pub fn lemke(
+    m: &DMatrix<f64>,
+    q: &DVector<f64>,
+    options: &LemkeOptions,
+) -> Result<(DVector<f64>, usize), SolverError> {
     let n = q.len();
     if m.shape() != (n, n) {
         return Err(SolverError::InvalidProblem(format!("M is {:?}, q has {n} entries", m.shape())));
@@ -214,7 +218,11 @@ fn ratio_test(
                 let (ri, rb) = (x[i] / column[i], x[b] / column[b]);
                 let tie = (ri - rb).abs() <= 1e-12 * ri.abs().max(rb.abs()).max(1e-300);
                 if !tie {
-                    if ri < rb { i } else { b }
+                    if ri < rb {
+                        i
+                    } else {
+                        b
+                    }
                 } else if basis[i] == z0 {
                     i
                 } else if basis[b] == z0 {
@@ -277,7 +285,11 @@ impl ConstraintSolver for LemkeSolver {
         "lemke"
     }
 
-    fn solve(&mut self, problem: &ConstraintProblem, lambda: &mut DVector<f64>) -> Result<SolveInfo, SolverError> {
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError> {
         check_problem(problem)?;
         let lcp = lcp_of(problem, self.facets);
         let (z, pivots) = lemke(&lcp.m, &lcp.q, &self.options)?;

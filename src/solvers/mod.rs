@@ -74,7 +74,11 @@ pub trait ConstraintSolver {
     fn name(&self) -> &str;
     /// Solves `problem`, writing impulses (N·s) into `lambda`, which holds a warm start on entry
     /// (resized and zeroed by the solver if its length is wrong).
-    fn solve(&mut self, problem: &ConstraintProblem, lambda: &mut DVector<f64>) -> Result<SolveInfo, SolverError>;
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError>;
     /// The residual measure (m/s) that certifies this solver's formulation.
     fn certify(&self, residuals: &Residuals) -> f64 {
         residuals.exact()
@@ -86,9 +90,18 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
     let n = problem.rows();
     let bad = |what: String| Err(SolverError::InvalidProblem(what));
     if problem.delassus.shape() != (n, n) || problem.bias.len() != n || problem.regularization.len() != n {
-        return bad(format!("{n} rows but A is {:?} and b has {}", problem.delassus.shape(), problem.bias.len()));
+        return bad(format!(
+            "{n} rows but A is {:?} and b has {}",
+            problem.delassus.shape(),
+            problem.bias.len()
+        ));
     }
-    if !problem.delassus.iter().chain(problem.bias.iter()).chain(problem.regularization.iter()).all(|x| x.is_finite())
+    if !problem
+        .delassus
+        .iter()
+        .chain(problem.bias.iter())
+        .chain(problem.regularization.iter())
+        .all(|x| x.is_finite())
     {
         return bad("A, b or R holds NaN or infinity".into());
     }

@@ -40,7 +40,11 @@ impl ConstraintSolver for PgsSolver {
         "pgs"
     }
 
-    fn solve(&mut self, problem: &ConstraintProblem, lambda: &mut DVector<f64>) -> Result<SolveInfo, SolverError> {
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError> {
         check_problem(problem)?;
         let n = problem.rows();
         if lambda.len() != n || !self.warm_start || !lambda.iter().all(|x| x.is_finite()) {
@@ -121,6 +125,14 @@ fn project_friction(l1: f64, l2: f64, normal: f64, mu: f64, mu2: f64, model: Fri
                 .fold(0.0, f64::max)
         }
     };
-    let scale = if reach > bound { if reach > 0.0 { bound / reach } else { 0.0 } } else { 1.0 };
+    let scale = if reach > bound {
+        if reach > 0.0 {
+            bound / reach
+        } else {
+            0.0
+        }
+    } else {
+        1.0
+    };
     (mu * s1 * scale, mu2 * s2 * scale)
 }

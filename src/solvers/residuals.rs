@@ -46,11 +46,19 @@ pub struct QpResiduals {
 impl Residuals {
     /// The residual that certifies the exact complementarity formulation (Lemke, PGS).
     pub fn exact(&self) -> f64 {
-        self.signorini.max(self.bilateral).max(self.bounded).max(self.friction_feasibility).max(self.dissipation)
+        self.signorini
+            .max(self.bilateral)
+            .max(self.bounded)
+            .max(self.friction_feasibility)
+            .max(self.dissipation)
     }
     /// The residual that certifies the convex relaxation (clarabel).
     pub fn convex(&self) -> f64 {
-        self.conic_kkt.max(self.bilateral).max(self.bounded).max(self.friction_feasibility).max(self.dissipation)
+        self.conic_kkt
+            .max(self.bilateral)
+            .max(self.bounded)
+            .max(self.friction_feasibility)
+            .max(self.dissipation)
     }
 }
 
@@ -90,7 +98,13 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
                 let projected = (li - wi / di).clamp(lo, hi);
                 r.bounded = r.bounded.max(di * (li - projected).abs());
                 qp.primal = qp.primal.max(lo - li).max(li - hi);
-                let dual = if li <= lo { (-wi).max(0.0) } else if li >= hi { wi.max(0.0) } else { wi.abs() };
+                let dual = if li <= lo {
+                    (-wi).max(0.0)
+                } else if li >= hi {
+                    wi.max(0.0)
+                } else {
+                    wi.abs()
+                };
                 qp.dual = qp.dual.max(dual);
                 gap += if li <= lo || li >= hi { li * wi } else { 0.0 };
             }
