@@ -41,8 +41,10 @@ pub mod error;
 pub mod io;
 pub mod math;
 pub mod model;
+pub mod scenes;
 pub mod solvers;
 pub mod state;
+pub mod world;
 
 /// The README's examples are compiled and run as doctests.
 #[cfg(doctest)]

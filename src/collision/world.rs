@@ -164,6 +164,7 @@ pub struct CollisionStats {
 struct MultibodyEntry {
     parents: Vec<usize>,
     self_collision: bool,
+    asleep: bool,
     colliders: Vec<usize>,
 }
 
@@ -221,6 +222,7 @@ impl CollisionWorld {
         self.multibodies.push(MultibodyEntry {
             parents: (0..model.nbodies()).map(|i| model.parent(i)).collect(),
             self_collision: false,
+            asleep: false,
             colliders: (first..self.colliders.len()).collect(),
         });
         self.broad.invalidate();
@@ -294,6 +296,21 @@ impl CollisionWorld {
         })?;
         entry.self_collision = on;
         Ok(())
+    }
+
+    /// Marks a multibody asleep (it does not move: pairs between sleeping or static colliders are
+    /// not tested) or awake.
+    pub fn set_asleep(&mut self, multibody: usize, asleep: bool) {
+        if let Some(entry) = self.multibodies.get_mut(multibody) {
+            entry.asleep = asleep;
+        }
+    }
+
+    /// Sets the material index of a collider (out-of-range indices are ignored).
+    pub fn set_material(&mut self, collider: usize, material: u32) {
+        if let Some(c) = self.colliders.get_mut(collider) {
+            c.material = material;
+        }
     }
 
     /// Sets the groups and mask of a collider.
@@ -491,7 +508,7 @@ fn make_collider(
     }
 }
 
-/// The filtering rules: never static against static; never two colliders of one body; within
+/// The filtering rules: never static or sleeping against static or sleeping; never two colliders of one body; within
 /// a multibody only with self-collision on, and bodies joined by a joint only if asked; groups
 /// and masks always.
 fn may_collide(
@@ -500,7 +517,11 @@ fn may_collide(
     multibodies: &[MultibodyEntry],
     options: &CollisionOptions,
 ) -> bool {
-    if a.attachment.is_static() && b.attachment.is_static() {
+    let still = |c: &Collider| match c.attachment {
+        Attachment::World => true,
+        Attachment::Body { multibody, body } => body == 0 || multibodies[multibody].asleep,
+    };
+    if still(a) && still(b) {
         return false;
     }
     if !a.filter.accepts(&b.filter) {

@@ -75,13 +75,35 @@ impl ContactParameters {
 /// Appends the rows of `contacts` to `builder`. `systems[m]` is the model and data (with
 /// `data.j_world` current) of multibody `m`, whose velocities start at column `offsets[m]`; `v`
 /// is the current velocity of all systems (for the approach speed), `h` the step (s), and
-/// `parameters(contact)` the surface parameters of a contact. Returns nothing; contact `i` of
-/// the slice gets [`RowOrigin::Contact`]`(first_index + i)`.
+/// `parameters(contact)` the surface parameters of a contact. Contact `i` of the slice gets
+/// [`RowOrigin::Contact`]`(first_index + i)`.
 #[allow(clippy::too_many_arguments)]
 pub fn add_contact_rows(
     builder: &mut ProblemBuilder,
     systems: &[(&Model, &Data)],
     offsets: &[usize],
+    contacts: &[Contact],
+    first_index: usize,
+    v: &DVector<f64>,
+    h: f64,
+    parameters: impl FnMut(&Contact) -> ContactParameters,
+) {
+    add_contact_rows_with(
+        builder,
+        |m| (systems[m].0, systems[m].1, offsets[m]),
+        contacts,
+        first_index,
+        v,
+        h,
+        parameters,
+    );
+}
+
+/// [`add_contact_rows`] with the systems given by a function: `system(m)` is the model, the data
+/// and the first velocity column of multibody `m`.
+pub fn add_contact_rows_with<'a>(
+    builder: &mut ProblemBuilder,
+    system: impl Fn(usize) -> (&'a Model, &'a Data, usize),
     contacts: &[Contact],
     first_index: usize,
     v: &DVector<f64>,
@@ -105,17 +127,8 @@ pub fn add_contact_rows(
                 [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
             {
                 if let Attachment::Body { multibody, body } = side {
-                    let (model, data) = systems[multibody];
-                    add_point_direction_row(
-                        model,
-                        data,
-                        body,
-                        &point,
-                        direction,
-                        sign,
-                        row,
-                        offsets[multibody],
-                    );
+                    let (model, data, col) = system(multibody);
+                    add_point_direction_row(model, data, body, &point, direction, sign, row, col);
                 }
             }
         }

@@ -48,6 +48,12 @@ impl SolverChain {
         Self { solvers, tolerance, accept_last: false, w: DVector::zeros(0), candidate: DVector::zeros(0) }
     }
 
+    /// The certifying residual of `residuals` for the solver named `solver` (the exact
+    /// formulation's if no solver has that name).
+    pub fn certify(&self, solver: &str, residuals: &Residuals) -> f64 {
+        self.solvers.iter().find(|s| s.name() == solver).map_or(residuals.exact(), |s| s.certify(residuals))
+    }
+
     /// Solves `problem`; `lambda` holds the warm start on entry and the answer on success.
     pub fn solve(
         &mut self,

@@ -129,7 +129,7 @@ pub fn cone_program(problem: &ConstraintProblem) -> ConeProgram {
             triplets.push((col, r, x));
         }
     }
-    triplets.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    triplets.sort_by_key(|t| (t.0, t.1));
     let (mut colptr, mut rowval, mut nzval) = (vec![0usize; n + 1], Vec::new(), Vec::new());
     for &(col, r, x) in &triplets {
         colptr[col + 1] += 1;

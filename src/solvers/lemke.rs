@@ -297,7 +297,7 @@ impl ConstraintSolver for LemkeSolver {
         let w = &lcp.m * &z + &lcp.q;
         let residual = z.iter().zip(w.iter()).map(|(z, w)| z.min(*w).abs()).fold(0.0, f64::max);
         let scale = lcp.q.amax().max(1.0);
-        if !(residual <= self.options.tolerance * scale) {
+        if residual.is_nan() || residual > self.options.tolerance * scale {
             return Err(SolverError::Inaccurate {
                 solver: "lemke".into(),
                 residual,

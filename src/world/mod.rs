@@ -1,0 +1,710 @@
+//! [`World`]: several multibodies and static geometry stepped together with contacts, joint
+//! limits, motors, servos, joint friction and loop closures as one constraint problem per step.
+//!
+//! [`World::step`] is the table of contents (as in ../shared/DESIGN.md):
+//! check state finite → kinematics → collision → free motion → constraint rows → solve →
+//! velocity update → integrate q on the manifold → sleeping and statistics.
+//! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
+//! instead of CRBA); sleeping islands are skipped entirely.
+
+mod multibody;
+mod options;
+mod sleep;
+
+pub use multibody::{Motor, Multibody, Servo};
+pub use options::{SleepOptions, SolverKind, WorldOptions};
+
+use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
+use crate::constraints::{
+    add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows,
+    add_motor_row, ConstraintProblem, ContactParameters, LoopClosure, ProblemBuilder, RowOrigin,
+};
+use crate::error::CollisionError;
+use crate::error::DynamicsError;
+use crate::math::{Transform, Vec3};
+use crate::model::{Model, Shape};
+use crate::solvers::{Fallback, SolverChain, SolverError};
+use nalgebra::DVector;
+use std::collections::HashMap;
+use std::time::Instant;
+use thiserror::Error;
+
+/// Why a step failed. The state is left as it was before the step.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum StepError {
+    /// A NaN or infinity in a multibody's state (before or after the step).
+    #[error("multibody `{multibody}`: {what} of joint `{joint}` is not finite")]
+    NonFinite {
+        /// Multibody name.
+        multibody: String,
+        /// Joint owning the coordinate.
+        joint: String,
+        /// "q", "v", "new q" or "new v".
+        what: &'static str,
+    },
+    /// The dynamics refused the state (a singular mass matrix, ...).
+    #[error("multibody `{multibody}`: {source}")]
+    Dynamics {
+        /// Multibody name.
+        multibody: String,
+        /// The error.
+        source: DynamicsError,
+    },
+    /// Collision detection failed.
+    #[error(transparent)]
+    Collision(#[from] CollisionError),
+    /// Every solver of the chain failed.
+    #[error(transparent)]
+    Solver(#[from] SolverError),
+    /// A multibody or body index out of range.
+    #[error("index {index} is out of range ({count} {what})")]
+    IndexOutOfRange {
+        /// What was indexed.
+        what: &'static str,
+        /// Index given.
+        index: usize,
+        /// Number available.
+        count: usize,
+    },
+}
+
+/// What the last step did, cheaply gathered.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Steps taken so far.
+    pub step: u64,
+    /// Simulated time after the step (s).
+    pub time: f64,
+    /// Contact points.
+    pub contacts: usize,
+    /// Constraint rows.
+    pub rows: usize,
+    /// Solver whose answer was used (empty when no rows).
+    pub solver: String,
+    /// Its iterations or pivots.
+    pub iterations: usize,
+    /// Its certifying residual (m/s).
+    pub residual: f64,
+    /// Solvers that failed before it, and why.
+    pub fallbacks: Vec<Fallback>,
+    /// Deepest penetration among the contacts (m, ≥ 0).
+    pub max_penetration: f64,
+    /// Multibodies asleep after the step.
+    pub asleep: usize,
+    /// Total energy (J) after the step, if diagnostics are on.
+    pub energy: Option<f64>,
+    /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
+    /// integration + sleeping.
+    pub phase_ns: [u64; 6],
+}
+
+/// A simulated world.
+pub struct World {
+    options: WorldOptions,
+    bodies: Vec<Multibody>,
+    names: Vec<String>,
+    collision: CollisionWorld,
+    materials: Vec<ContactParameters>,
+    pair_parameters: HashMap<(u32, u32), ContactParameters>,
+    loops: Vec<(usize, LoopClosure)>,
+    chain: SolverChain,
+    builder: ProblemBuilder,
+    problem: ConstraintProblem,
+    lambda: DVector<f64>,
+    warm: HashMap<u64, f64>,
+    contacts: Vec<Contact>,
+    v_all: DVector<f64>,
+    v_free_all: DVector<f64>,
+    nv_total: usize,
+    time: f64,
+    steps: u64,
+    accumulator: f64,
+    stats: StepStats,
+    islands: sleep::Islands,
+}
+
+impl World {
+    /// An empty world.
+    pub fn new(options: WorldOptions) -> Self {
+        Self {
+            collision: CollisionWorld::new(options.collision),
+            chain: options.chain(),
+            builder: ProblemBuilder::new(0, options.friction),
+            materials: vec![options.contact],
+            options,
+            bodies: Vec::new(),
+            names: Vec::new(),
+            pair_parameters: HashMap::new(),
+            loops: Vec::new(),
+            problem: ConstraintProblem::default(),
+            lambda: DVector::zeros(0),
+            warm: HashMap::new(),
+            contacts: Vec::new(),
+            v_all: DVector::zeros(0),
+            v_free_all: DVector::zeros(0),
+            nv_total: 0,
+            time: 0.0,
+            steps: 0,
+            accumulator: 0.0,
+            stats: StepStats::default(),
+            islands: sleep::Islands::default(),
+        }
+    }
+
+    /// The options.
+    pub fn options(&self) -> &WorldOptions {
+        &self.options
+    }
+
+    /// Adds a multibody (its gravity is set to the world's) with its collision geometry and
+    /// returns its index. Its state starts at the neutral configuration, at rest.
+    pub fn add_multibody(
+        &mut self,
+        name: &str,
+        mut model: Model,
+        meshes: &MeshOptions,
+    ) -> Result<usize, StepError> {
+        model.set_gravity(self.options.gravity);
+        let index = self.collision.add_model(&model, meshes)?;
+        debug_assert_eq!(index, self.bodies.len());
+        let mut body = Multibody::new(model);
+        body.col = self.nv_total;
+        self.nv_total += body.model.nv();
+        self.bodies.push(body);
+        self.names.push(name.to_string());
+        self.builder = ProblemBuilder::new(self.nv_total, self.options.friction);
+        self.v_all = DVector::zeros(self.nv_total);
+        self.v_free_all = DVector::zeros(self.nv_total);
+        Ok(index)
+    }
+
+    /// Adds static geometry at `pose` (world frame) with material `material`; returns the collider.
+    pub fn add_static(
+        &mut self,
+        name: &str,
+        shape: &Shape,
+        pose: Transform,
+        material: u32,
+    ) -> Result<usize, StepError> {
+        let c = self.collision.add_static(name, shape, pose, &MeshOptions::default())?;
+        self.collision.set_material(c, material);
+        Ok(c)
+    }
+
+    /// Turns self-collision of a multibody on or off.
+    pub fn set_self_collision(&mut self, multibody: usize, on: bool) -> Result<(), StepError> {
+        Ok(self.collision.set_self_collision(multibody, on)?)
+    }
+
+    /// Defines material `index` (0 is the default material of every collider).
+    pub fn set_material(&mut self, index: u32, parameters: ContactParameters) {
+        let i = index as usize;
+        if self.materials.len() <= i {
+            self.materials.resize(i + 1, self.options.contact);
+        }
+        self.materials[i] = parameters;
+    }
+
+    /// Parameters used when materials `a` and `b` touch, overriding the combination rule.
+    pub fn set_pair_parameters(&mut self, a: u32, b: u32, parameters: ContactParameters) {
+        self.pair_parameters.insert((a.min(b), a.max(b)), parameters);
+    }
+
+    /// Adds a loop closure between two bodies of multibody `multibody`.
+    pub fn add_loop(&mut self, multibody: usize, closure: LoopClosure) -> Result<(), StepError> {
+        self.check_multibody(multibody)?;
+        self.loops.push((multibody, closure));
+        Ok(())
+    }
+
+    /// The collision world (colliders, materials, filters).
+    pub fn collision(&self) -> &CollisionWorld {
+        &self.collision
+    }
+
+    /// The collision world, mutably (filters, materials, self-collision).
+    pub fn collision_mut(&mut self) -> &mut CollisionWorld {
+        &mut self.collision
+    }
+
+    /// Multibody `i`.
+    pub fn multibody(&self, i: usize) -> &Multibody {
+        &self.bodies[i]
+    }
+
+    /// Multibody `i`, mutably (state, torques, motors); changing it wakes it.
+    pub fn multibody_mut(&mut self, i: usize) -> &mut Multibody {
+        self.wake(i);
+        &mut self.bodies[i]
+    }
+
+    /// Number of multibodies.
+    pub fn multibody_count(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Name of multibody `i`.
+    pub fn multibody_name(&self, i: usize) -> &str {
+        &self.names[i]
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Statistics of the last step.
+    pub fn stats(&self) -> &StepStats {
+        &self.stats
+    }
+
+    /// Contacts of the last step.
+    pub fn contacts(&self) -> &[Contact] {
+        &self.contacts
+    }
+
+    /// The constraint problem of the last step (for export and diagnostics).
+    pub fn problem(&self) -> &ConstraintProblem {
+        &self.problem
+    }
+
+    /// Impulses of the last step (N·s), one per row of [`World::problem`].
+    pub fn impulses(&self) -> &DVector<f64> {
+        &self.lambda
+    }
+
+    /// Wakes multibody `i` (and lets its island be evaluated again).
+    pub fn wake(&mut self, i: usize) {
+        if let Some(b) = self.bodies.get_mut(i) {
+            b.asleep = false;
+            b.idle_steps = 0;
+            b.idle_time = 0.0;
+            b.speed_history.clear();
+            self.collision.set_asleep(i, false);
+        }
+    }
+
+    fn check_multibody(&self, i: usize) -> Result<(), StepError> {
+        if i < self.bodies.len() {
+            Ok(())
+        } else {
+            Err(StepError::IndexOutOfRange { what: "multibodies", index: i, count: self.bodies.len() })
+        }
+    }
+
+    /// Applies a force `force` (N, world axes) at the world point `point` (m) and a torque
+    /// `torque` (N·m, world axes) to body `body` of multibody `multibody` during the next step.
+    pub fn apply_force(
+        &mut self,
+        multibody: usize,
+        body: usize,
+        force: Vec3,
+        point: Vec3,
+        torque: Vec3,
+    ) -> Result<(), StepError> {
+        self.check_multibody(multibody)?;
+        let nb = self.bodies[multibody].model.nbodies();
+        if body == 0 || body >= nb {
+            return Err(StepError::IndexOutOfRange { what: "bodies", index: body, count: nb });
+        }
+        self.wake(multibody);
+        self.bodies[multibody].pending_forces.push((body, force, point, torque));
+        Ok(())
+    }
+
+    /// Applies an impulse `impulse` (N·s, world axes) at the world point `point` to body `body`:
+    /// an instant velocity change `Δv = M⁻¹ J_pᵀ p`.
+    pub fn apply_impulse(
+        &mut self,
+        multibody: usize,
+        body: usize,
+        impulse: Vec3,
+        point: Vec3,
+    ) -> Result<(), StepError> {
+        self.check_multibody(multibody)?;
+        let name = self.names[multibody].clone();
+        let mb = &mut self.bodies[multibody];
+        let nb = mb.model.nbodies();
+        if body == 0 || body >= nb {
+            return Err(StepError::IndexOutOfRange { what: "bodies", index: body, count: nb });
+        }
+        let dynamics = |source| StepError::Dynamics { multibody: name.clone(), source };
+        crate::algorithms::compute_joint_jacobians(&mb.model, &mut mb.data, &mb.state.q).map_err(dynamics)?;
+        crate::algorithms::crba(&mb.model, &mut mb.data, &mb.state.q).map_err(dynamics)?;
+        crate::algorithms::factor_mass_matrix(&mb.model, &mut mb.data).map_err(dynamics)?;
+        let mut dv = DVector::zeros(mb.model.nv());
+        crate::collision::add_point_direction_row(
+            &mb.model,
+            &mb.data,
+            body,
+            &point,
+            &impulse,
+            1.0,
+            dv.as_mut_slice(),
+            0,
+        );
+        crate::algorithms::solve_mass_matrix(&mb.model, &mb.data, &mut dv);
+        mb.state.v += dv;
+        self.wake(multibody);
+        Ok(())
+    }
+
+    /// Runs whole steps of `options.dt` for a frame of `frame_dt` seconds, at most
+    /// `options.max_substeps` of them (the rest of the backlog is dropped, so a slow frame cannot
+    /// cause ever more steps), and returns the interpolation factor α ∈ [0, 1) between the last
+    /// two states for rendering.
+    pub fn advance(&mut self, frame_dt: f64) -> Result<f64, StepError> {
+        let dt = self.options.dt;
+        self.accumulator += frame_dt.max(0.0);
+        let mut substeps = 0;
+        while self.accumulator >= dt && substeps < self.options.max_substeps {
+            self.step()?;
+            self.accumulator -= dt;
+            substeps += 1;
+        }
+        if self.accumulator >= dt {
+            self.accumulator %= dt;
+        }
+        Ok(self.accumulator / dt)
+    }
+
+    /// One step of `options.dt`. See the module documentation for the order of the phases.
+    pub fn step(&mut self) -> Result<&StepStats, StepError> {
+        let h = self.options.dt;
+        let mut clock = Instant::now();
+        let mut phase = [0u64; 6];
+        let mut lap = |k: usize, clock: &mut Instant| {
+            let now = Instant::now();
+            phase[k] = (now - *clock).as_nanos() as u64;
+            *clock = now;
+        };
+        // 1. Check the state.
+        for (i, b) in self.bodies.iter().enumerate() {
+            check_finite(&self.names[i], &b.model, &b.state.q, &b.state.v, false)?;
+        }
+        // 2. Kinematics.
+        for i in 0..self.bodies.len() {
+            if !self.bodies[i].asleep {
+                let b = &mut self.bodies[i];
+                b.kinematics()
+                    .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+                self.collision.update_multibody(i, &b.data)?;
+            }
+        }
+        lap(0, &mut clock);
+        // 3. Collision, and waking of sleepers touched by awake bodies.
+        self.contacts.clear();
+        self.contacts.extend_from_slice(self.collision.detect());
+        for k in 0..self.contacts.len() {
+            let c = self.contacts[k];
+            if let (Attachment::Body { multibody: a, .. }, Attachment::Body { multibody: b, .. }) =
+                (c.body_a, c.body_b)
+            {
+                for (sleeper, other) in [(a, b), (b, a)] {
+                    if self.bodies[sleeper].asleep && !self.bodies[other].asleep {
+                        self.wake(sleeper);
+                        let s = &mut self.bodies[sleeper];
+                        s.kinematics().map_err(|source| StepError::Dynamics {
+                            multibody: self.names[sleeper].clone(),
+                            source,
+                        })?;
+                    }
+                }
+            }
+        }
+        lap(1, &mut clock);
+        // 4. Free motion.
+        let has_rows = !self.contacts.is_empty()
+            || !self.loops.is_empty()
+            || self.bodies.iter().any(|b| {
+                b.motors.iter().any(Option::is_some)
+                    || b.servos.iter().any(Option::is_some)
+                    || b.model.friction().iter().any(|f| *f > 0.0)
+                    || has_active_limit(b, self.options.limits.margin)
+            });
+        for i in 0..self.bodies.len() {
+            let b = &mut self.bodies[i];
+            if b.asleep {
+                b.v_free.fill(0.0);
+                continue;
+            }
+            b.free_motion(h, has_rows)
+                .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+        }
+        for b in &self.bodies {
+            let (col, nv) = (b.col, b.model.nv());
+            self.v_all.rows_mut(col, nv).copy_from(&b.state.v);
+            self.v_free_all.rows_mut(col, nv).copy_from(&b.v_free);
+        }
+        lap(2, &mut clock);
+        // 5. Constraint rows.
+        self.builder.clear();
+        if has_rows {
+            self.add_rows(h);
+        }
+        let rows = self.builder.len();
+        // 6. Solve.
+        let mut report = None;
+        if rows > 0 {
+            let bodies = &self.bodies;
+            self.builder.build_into(
+                &self.v_free_all,
+                |x| {
+                    for b in bodies {
+                        let slice = &mut x[b.col..b.col + b.model.nv()];
+                        if b.asleep || b.kinematic || !b.factored {
+                            slice.fill(0.0);
+                        } else {
+                            crate::algorithms::solve_mass_matrix_slice(&b.model, &b.data, slice);
+                        }
+                    }
+                },
+                &mut self.problem,
+            );
+            lap(3, &mut clock);
+            self.warm_start();
+            report = Some(self.chain.solve(&self.problem, &mut self.lambda)?);
+            self.remember_impulses();
+        } else {
+            self.problem =
+                ConstraintProblem { friction: self.options.friction, ..ConstraintProblem::default() };
+            self.lambda = DVector::zeros(0);
+            lap(3, &mut clock);
+        }
+        lap(4, &mut clock);
+        // 7. Velocity update and integration on the manifold; commit only if all is finite.
+        if rows > 0 {
+            self.v_free_all.gemv(1.0, &self.problem.minv_jt, &self.lambda, 1.0);
+        }
+        for i in 0..self.bodies.len() {
+            let b = &mut self.bodies[i];
+            let nv = b.model.nv();
+            if b.asleep {
+                b.v_next.fill(0.0);
+                b.q_next.copy_from(&b.state.q);
+                continue;
+            }
+            b.v_next.copy_from(&self.v_free_all.rows(b.col, nv));
+            b.model.integrate(&b.state.q, &b.v_next, h, &mut b.q_next);
+            check_finite(&self.names[i], &b.model, &b.q_next, &b.v_next, true)?;
+        }
+        for b in &mut self.bodies {
+            std::mem::swap(&mut b.state.q, &mut b.q_next);
+            std::mem::swap(&mut b.state.v, &mut b.v_next);
+            b.state.t += h;
+            b.pending_forces.clear();
+        }
+        self.time += h;
+        self.steps += 1;
+        // 8. Sleeping and statistics.
+        if self.options.sleep.enabled {
+            sleep::update(self);
+        }
+        let energy = if self.options.diagnostics { Some(self.total_energy()) } else { None };
+        lap(5, &mut clock);
+        let report = report.unwrap_or_else(|| crate::solvers::ChainReport {
+            solver: String::new(),
+            iterations: 0,
+            residuals: Default::default(),
+            fallbacks: Vec::new(),
+            note: None,
+        });
+        let certify = self.chain.certify(&report.solver, &report.residuals);
+        self.stats = StepStats {
+            step: self.steps,
+            time: self.time,
+            contacts: self.contacts.len(),
+            rows,
+            solver: report.solver,
+            iterations: report.iterations,
+            residual: certify,
+            fallbacks: report.fallbacks,
+            max_penetration: self.contacts.iter().map(|c| -c.distance).fold(0.0, f64::max),
+            asleep: self.bodies.iter().filter(|b| b.asleep).count(),
+            energy,
+            phase_ns: phase,
+        };
+        Ok(&self.stats)
+    }
+
+    /// Kinetic plus potential energy of every multibody (J), at the current states.
+    pub fn total_energy(&mut self) -> f64 {
+        let mut total = 0.0;
+        for b in &mut self.bodies {
+            let (q, v) = (&b.state.q, &b.state.v);
+            total += crate::algorithms::kinetic_energy(&b.model, &mut b.data, q, v).unwrap_or(f64::NAN);
+            total += crate::algorithms::potential_energy(&b.model, &mut b.data, q).unwrap_or(f64::NAN);
+        }
+        total
+    }
+
+    fn parameters_of(&self, c: &Contact) -> ContactParameters {
+        let colliders = self.collision.colliders();
+        let (ma, mb) = (colliders[c.collider_a].material, colliders[c.collider_b].material);
+        if let Some(p) = self.pair_parameters.get(&(ma.min(mb), ma.max(mb))) {
+            return *p;
+        }
+        let get = |m: u32| self.materials.get(m as usize).copied().unwrap_or(self.options.contact);
+        let (a, b) = (get(ma), get(mb));
+        if ma == mb {
+            return a;
+        }
+        // Combination: geometric mean of friction, the livelier bounce, the softer contact.
+        ContactParameters {
+            mu: (a.mu * b.mu).sqrt(),
+            mu2: match (a.mu2, b.mu2) {
+                (None, None) => None,
+                (x, y) => Some((x.unwrap_or(a.mu) * y.unwrap_or(b.mu)).sqrt()),
+            },
+            restitution: a.restitution.max(b.restitution),
+            bounce_velocity: a.bounce_velocity.min(b.bounce_velocity),
+            erp: a.erp.min(b.erp),
+            cfm: a.cfm.max(b.cfm),
+            surface_layer: a.surface_layer.max(b.surface_layer),
+            max_correcting_velocity: a.max_correcting_velocity.min(b.max_correcting_velocity),
+        }
+    }
+
+    fn add_rows(&mut self, h: f64) {
+        let mut builder = std::mem::replace(&mut self.builder, ProblemBuilder::new(0, self.options.friction));
+        let bodies = &self.bodies;
+        let contacts = std::mem::take(&mut self.contacts);
+        add_contact_rows_with(
+            &mut builder,
+            |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
+            &contacts,
+            0,
+            &self.v_all,
+            h,
+            |c| self.parameters_of(c),
+        );
+        self.contacts = contacts;
+        for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {
+            add_joint_limit_rows(
+                &mut builder,
+                &b.model,
+                &b.state.q,
+                &b.state.v,
+                b.col,
+                h,
+                &self.options.limits,
+            );
+            for (k, motor) in b.motors.iter().enumerate() {
+                if let Some(m) = motor {
+                    add_motor_row(&mut builder, k, b.col, m.target_velocity, m.max_force, h);
+                }
+            }
+            for (k, servo) in b.servos.iter().enumerate() {
+                if let Some(s) = servo {
+                    let qk = position_of_dof(&b.model, &b.state.q, k);
+                    let rate = (s.gain * (s.target_position - qk)).clamp(-s.max_velocity, s.max_velocity);
+                    add_motor_row(&mut builder, k, b.col, rate, s.max_force, h);
+                }
+            }
+            add_joint_friction_rows(&mut builder, &b.model, b.col, h);
+        }
+        for (index, (m, closure)) in self.loops.iter().enumerate() {
+            let b = &bodies[*m];
+            if !b.asleep {
+                add_loop_closure_rows(&mut builder, &b.model, &b.data, b.col, closure, index, h);
+            }
+        }
+        self.builder = builder;
+    }
+
+    fn row_key(&self, i: usize, counter: &mut (usize, u64)) -> u64 {
+        let origin = self.problem.origins[i];
+        // Rows of one origin are numbered in order so that each gets its own key.
+        let base = match origin {
+            RowOrigin::Contact(k) => {
+                let c = &self.contacts[k];
+                (c.collider_a as u64) << 40 ^ (c.collider_b as u64) << 20 ^ c.feature.rotate_left(7)
+            }
+            RowOrigin::LowerLimit(k) => 1 << 62 | k as u64,
+            RowOrigin::UpperLimit(k) => 2 << 61 | k as u64,
+            RowOrigin::Motor(k) => 3 << 60 | k as u64,
+            RowOrigin::JointFriction(k) => 5 << 59 | k as u64,
+            RowOrigin::Loop(k) => 7 << 58 | k as u64,
+            RowOrigin::Other => 0,
+        };
+        if counter.1 == base && i > 0 {
+            counter.0 += 1;
+        } else {
+            *counter = (0, base);
+        }
+        base.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ counter.0 as u64
+    }
+
+    fn warm_start(&mut self) {
+        let n = self.problem.rows();
+        if self.lambda.len() != n {
+            self.lambda = DVector::zeros(n);
+        }
+        let mut counter = (0, u64::MAX);
+        for i in 0..n {
+            let key = self.row_key(i, &mut counter);
+            self.lambda[i] = self.warm.get(&key).copied().unwrap_or(0.0);
+        }
+    }
+
+    fn remember_impulses(&mut self) {
+        self.warm.clear();
+        let mut counter = (0, u64::MAX);
+        for i in 0..self.problem.rows() {
+            let key = self.row_key(i, &mut counter);
+            let value = self.lambda[i];
+            self.warm.insert(key, value);
+        }
+    }
+}
+
+fn check_finite(
+    name: &str,
+    model: &Model,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    after: bool,
+) -> Result<(), StepError> {
+    let joint_of_q = |k: usize| (1..model.nbodies()).rev().find(|&i| model.idx_q(i) <= k).unwrap_or(0);
+    let joint_of_v = |k: usize| if k < model.nv() { model.dof_joint(k) } else { 0 };
+    if let Some(k) = q.iter().position(|x| !x.is_finite()) {
+        return Err(StepError::NonFinite {
+            multibody: name.to_string(),
+            joint: model.joint_name(joint_of_q(k)).to_string(),
+            what: if after { "new q" } else { "q" },
+        });
+    }
+    if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+        return Err(StepError::NonFinite {
+            multibody: name.to_string(),
+            joint: model.joint_name(joint_of_v(k)).to_string(),
+            what: if after { "new v" } else { "v" },
+        });
+    }
+    Ok(())
+}
+
+/// Whether some scalar joint coordinate of the multibody is within `margin` of a limit.
+fn has_active_limit(b: &Multibody, margin: f64) -> bool {
+    let (lo, hi) = (b.model.lower_position_limit(), b.model.upper_position_limit());
+    (1..b.model.nbodies()).any(|i| {
+        let joint = b.model.joint(i);
+        let scalar = !matches!(joint, crate::model::Joint::Ball | crate::model::Joint::Free);
+        scalar
+            && (b.model.idx_q(i)..b.model.idx_q(i) + joint.nq()).any(|k| {
+                (lo[k].is_finite() && b.state.q[k] - lo[k] <= margin)
+                    || (hi[k].is_finite() && hi[k] - b.state.q[k] <= margin)
+            })
+    })
+}
+
+/// The position coordinate of velocity dof `k` for joints whose coordinates are scalars.
+fn position_of_dof(model: &Model, q: &DVector<f64>, k: usize) -> f64 {
+    let j = model.dof_joint(k);
+    let joint = model.joint(j);
+    if joint.nq() == joint.nv() {
+        q[model.idx_q(j) + (k - model.idx_v(j))]
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,142 @@
+//! Options of a [`super::World`]: time step, solver chain, friction model, joint-limit and
+//! sleeping parameters.
+
+use crate::collision::CollisionOptions;
+use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters};
+use crate::math::Vec3;
+use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, PgsSolver, SolverChain};
+
+/// A solver of the chain, by kind.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SolverKind {
+    /// Lemke's method on the pyramid LCP (`facets` directions when friction is a cone).
+    Lemke {
+        /// Pyramid directions.
+        facets: usize,
+    },
+    /// clarabel on the convex relaxation.
+    Clarabel,
+    /// Projected Gauss–Seidel.
+    Pgs {
+        /// Maximum sweeps.
+        iterations: usize,
+        /// Over-relaxation factor.
+        omega: f64,
+    },
+}
+
+impl SolverKind {
+    /// A boxed solver of this kind.
+    pub fn build(&self) -> Box<dyn ConstraintSolver> {
+        match *self {
+            SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
+            SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
+            SolverKind::Pgs { iterations, omega } => {
+                Box::new(PgsSolver { iterations, omega, tolerance: 1e-10, warm_start: true })
+            }
+        }
+    }
+
+    /// Parses `lemke`, `clarabel`, `pgs` or `pgsN` (N sweeps).
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "lemke" => Some(SolverKind::Lemke { facets: 8 }),
+            "clarabel" => Some(SolverKind::Clarabel),
+            "pgs" => Some(SolverKind::Pgs { iterations: 50, omega: 1.0 }),
+            other => other
+                .strip_prefix("pgs")
+                .and_then(|n| n.parse().ok())
+                .map(|iterations| SolverKind::Pgs { iterations, omega: 1.0 }),
+        }
+    }
+}
+
+/// Sleeping parameters (ODE's auto-disable): a multibody is idle when its speeds, averaged over
+/// `average_samples` steps, stay below the thresholds; an island of touching bodies sleeps when
+/// all its members have been idle for `idle_steps` steps and `idle_time` seconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SleepOptions {
+    /// Whether bodies may fall asleep.
+    pub enabled: bool,
+    /// Linear speed threshold (m/s) of body origins.
+    pub linear_threshold: f64,
+    /// Angular speed threshold (rad/s).
+    pub angular_threshold: f64,
+    /// Steps over which speeds are averaged.
+    pub average_samples: usize,
+    /// Idle steps before sleeping.
+    pub idle_steps: usize,
+    /// Idle time (s) before sleeping.
+    pub idle_time: f64,
+}
+
+impl Default for SleepOptions {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            linear_threshold: 0.01,
+            angular_threshold: 0.01,
+            average_samples: 10,
+            idle_steps: 10,
+            idle_time: 0.0,
+        }
+    }
+}
+
+/// Everything a world is configured with.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldOptions {
+    /// Fixed time step h (s).
+    pub dt: f64,
+    /// At most this many steps per [`super::World::advance`] call.
+    pub max_substeps: usize,
+    /// Gravity (m/s²), applied to every multibody added.
+    pub gravity: Vec3,
+    /// Collision options (contact margin, joined bodies).
+    pub collision: CollisionOptions,
+    /// Friction cone or pyramid.
+    pub friction: FrictionModel,
+    /// Solver chain, first choice first.
+    pub solvers: Vec<SolverKind>,
+    /// Residual (m/s) a solver's answer must meet before the chain accepts it.
+    pub tolerance: f64,
+    /// Accept the last solver's answer even above the tolerance (recorded) instead of failing.
+    pub accept_last: bool,
+    /// Contact parameters of material 0 (the default material).
+    pub contact: ContactParameters,
+    /// Joint-limit parameters.
+    pub limits: JointLimitParameters,
+    /// Sleeping.
+    pub sleep: SleepOptions,
+    /// Compute energy and momentum in the step statistics (costs one extra pass).
+    pub diagnostics: bool,
+}
+
+impl Default for WorldOptions {
+    fn default() -> Self {
+        Self {
+            dt: 0.002,
+            max_substeps: 8,
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            collision: CollisionOptions::default(),
+            friction: FrictionModel::Cone,
+            solvers: vec![SolverKind::Pgs { iterations: 100, omega: 1.0 }, SolverKind::Clarabel],
+            tolerance: 1e-6,
+            accept_last: true,
+            contact: ContactParameters::default(),
+            limits: JointLimitParameters::default(),
+            sleep: SleepOptions::default(),
+            diagnostics: false,
+        }
+    }
+}
+
+impl WorldOptions {
+    /// The solver chain these options describe.
+    pub fn chain(&self) -> SolverChain {
+        let mut chain =
+            SolverChain::new(self.solvers.iter().map(SolverKind::build).collect(), self.tolerance);
+        chain.accept_last = self.accept_last;
+        chain
+    }
+}

@@ -1,0 +1,300 @@
+//! The world's step against closed forms: a bouncing ball rebounds to ε²h, a resting box stays
+//! still, a sliding box stops after v₀²/(2μg), a box on an incline sticks iff μ ≥ tan θ, a
+//! pendulum stops at its joint limit, a motor reaches its target, two runs are bit-identical,
+//! the accumulator caps substeps, a sleeping stack sleeps and wakes when hit.
+
+use gelenk::collision::MeshOptions;
+use gelenk::constraints::ContactParameters;
+use gelenk::math::{axis_angle, Transform, Vec3};
+use gelenk::model::{BodySpec, Joint, JointLimits, ModelBuilder, RigidInertia, Shape};
+use gelenk::world::{Motor, SolverKind, World, WorldOptions};
+
+fn lone_body(name: &str, shape: Shape, inertia: RigidInertia) -> gelenk::Model {
+    let mut b = ModelBuilder::new();
+    b.add_body(
+        BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
+            .with_collision(shape, Transform::identity()),
+    );
+    b.build().unwrap()
+}
+
+fn world_with_ground(options: WorldOptions, normal: Vec3) -> World {
+    let mut w = World::new(options);
+    w.add_static("ground", &Shape::HalfSpace { normal }, Transform::identity(), 0).unwrap();
+    w
+}
+
+fn exact_options() -> WorldOptions {
+    WorldOptions {
+        solvers: vec![SolverKind::Lemke { facets: 8 }, SolverKind::Clarabel],
+        tolerance: 1e-8,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn ball_rebounds_to_epsilon_squared_height() {
+    let mut options = exact_options();
+    options.dt = 1e-4;
+    options.contact =
+        ContactParameters { restitution: 0.8, bounce_velocity: 0.01, mu: 0.0, ..Default::default() };
+    options.collision.margin = 0.02;
+    options.sleep.enabled = false;
+    let mut w = world_with_ground(options, Vec3::z());
+    let r = 0.05;
+    let ball = w
+        .add_multibody(
+            "ball",
+            lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
+            &MeshOptions::default(),
+        )
+        .unwrap();
+    let h0 = 1.0;
+    w.multibody_mut(ball).state.q[2] = r + h0;
+    let mut apex: f64 = 0.0;
+    let mut bounced = false;
+    let mut last_z = r + h0;
+    for _ in 0..20000 {
+        w.step().unwrap();
+        let z = w.multibody(ball).state.q[2];
+        let vz = w.multibody(ball).state.v[2];
+        if vz > 0.0 {
+            bounced = true;
+        }
+        if bounced && vz <= 0.0 && z < last_z {
+            apex = last_z - r;
+            break;
+        }
+        last_z = z;
+    }
+    let expected = 0.8f64.powi(2) * h0;
+    assert!((apex - expected).abs() < 0.01 * expected, "apex {apex} vs {expected}");
+}
+
+#[test]
+fn resting_box_stays_still() {
+    let mut options = exact_options();
+    options.sleep.enabled = false;
+    let mut w = world_with_ground(options, Vec3::z());
+    let side = 0.2;
+    let b = w
+        .add_multibody(
+            "box",
+            lone_body(
+                "box",
+                Shape::Box { size: Vec3::repeat(side) },
+                RigidInertia::solid_box(1.0, Vec3::repeat(side)),
+            ),
+            &MeshOptions::default(),
+        )
+        .unwrap();
+    w.multibody_mut(b).state.q[2] = side / 2.0;
+    for _ in 0..500 {
+        w.step().unwrap();
+    }
+    let x1 = w.multibody(b).state.q.clone();
+    for _ in 0..4500 {
+        w.step().unwrap();
+        assert!(w.multibody(b).state.v.norm() < 1e-6, "v = {}", w.multibody(b).state.v.norm());
+    }
+    let drift = (w.multibody(b).state.q.clone() - x1).norm();
+    assert!(drift < 1e-6, "drift {drift}");
+}
+
+#[test]
+fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
+    let mut options = exact_options();
+    options.dt = 1e-3;
+    options.contact = ContactParameters { mu: 0.5, ..Default::default() };
+    options.sleep.enabled = false;
+    let mut w = world_with_ground(options, Vec3::z());
+    let side = 0.2;
+    let b = w
+        .add_multibody(
+            "box",
+            lone_body(
+                "box",
+                Shape::Box { size: Vec3::repeat(side) },
+                RigidInertia::solid_box(1.0, Vec3::repeat(side)),
+            ),
+            &MeshOptions::default(),
+        )
+        .unwrap();
+    w.multibody_mut(b).state.q[2] = side / 2.0;
+    for _ in 0..50 {
+        w.step().unwrap();
+    }
+    let v0 = 2.0;
+    let x0 = w.multibody(b).state.q[0];
+    w.multibody_mut(b).state.v[0] = v0;
+    for _ in 0..3000 {
+        w.step().unwrap();
+    }
+    let distance = w.multibody(b).state.q[0] - x0;
+    let expected = v0 * v0 / (2.0 * 0.5 * 9.81);
+    assert!((distance - expected).abs() < 0.02 * expected, "distance {distance} vs {expected}");
+}
+
+#[test]
+fn box_on_incline_sticks_iff_mu_at_least_tan_theta() {
+    let theta: f64 = 20f64.to_radians();
+    for (mu, sticks) in [(0.30, false), (0.42, true)] {
+        let mut options = exact_options();
+        options.dt = 1e-3;
+        options.contact = ContactParameters { mu, ..Default::default() };
+        options.sleep.enabled = false;
+        let normal = axis_angle(&Vec3::y(), theta) * Vec3::z();
+        let mut w = world_with_ground(options, normal);
+        let side = 0.2;
+        let b = w
+            .add_multibody(
+                "box",
+                lone_body(
+                    "box",
+                    Shape::Box { size: Vec3::repeat(side) },
+                    RigidInertia::solid_box(1.0, Vec3::repeat(side)),
+                ),
+                &MeshOptions::default(),
+            )
+            .unwrap();
+        let rot = nalgebra::UnitQuaternion::from_axis_angle(&Vec3::y_axis(), theta);
+        let centre = normal * (side / 2.0);
+        let q = &mut w.multibody_mut(b).state.q;
+        q.rows_mut(0, 3).copy_from(&centre);
+        q[3] = rot.i;
+        q[4] = rot.j;
+        q[5] = rot.k;
+        q[6] = rot.w;
+        for _ in 0..1000 {
+            w.step().unwrap();
+        }
+        let moved = (w.multibody(b).state.q.rows(0, 3) - centre).norm();
+        if sticks {
+            assert!(moved < 1e-3, "μ = {mu}: moved {moved}");
+        } else {
+            // a = g (sin θ − μ cos θ): 1 s of sliding.
+            let expected = 0.5 * 9.81 * (theta.sin() - mu * theta.cos());
+            assert!(
+                (moved - expected).abs() < 0.05 * expected,
+                "μ = {mu}: moved {moved}, expected {expected}"
+            );
+        }
+    }
+}
+
+fn pendulum(lower: f64) -> gelenk::Model {
+    let mut b = ModelBuilder::new();
+    let rod = RigidInertia::new(1.0, Vec3::new(0.0, 0.0, -0.5), nalgebra::Matrix3::identity() * 1e-3);
+    b.add_body(
+        BodySpec::new("arm", "universe", Joint::hinge(Vec3::y()), Transform::identity(), rod)
+            .with_limits(JointLimits { lower: vec![lower], upper: vec![3.0], ..Default::default() }),
+    );
+    b.build().unwrap()
+}
+
+#[test]
+fn pendulum_stops_at_its_limit_and_a_motor_reaches_its_target() {
+    let mut options = exact_options();
+    options.sleep.enabled = false;
+    let mut w = World::new(options);
+    // The hanging position q = 0 lies beyond the lower limit 0.3: the pendulum falls onto the
+    // stop and stays there.
+    let p = w.add_multibody("pendulum", pendulum(0.3), &MeshOptions::default()).unwrap();
+    w.multibody_mut(p).state.q[0] = 1.0;
+    for _ in 0..2000 {
+        w.step().unwrap();
+        assert!(w.multibody(p).state.q[0] > 0.3 - 0.01, "q = {}", w.multibody(p).state.q[0]);
+    }
+    let q = w.multibody(p).state.q[0];
+    assert!((q - 0.3).abs() < 0.002, "rests at the limit: {q}");
+
+    let mut w = World::new(exact_options());
+    let p = w.add_multibody("pendulum", pendulum(-3.0), &MeshOptions::default()).unwrap();
+    w.multibody_mut(p).set_motor(0, Some(Motor { target_velocity: 1.0, max_force: 50.0 }));
+    for _ in 0..200 {
+        w.step().unwrap();
+    }
+    assert!((w.multibody(p).state.v[0] - 1.0).abs() < 1e-9, "v = {}", w.multibody(p).state.v[0]);
+}
+
+#[test]
+fn two_runs_are_bit_identical_and_substeps_are_capped() {
+    let run = || {
+        let mut w = world_with_ground(WorldOptions::default(), Vec3::z());
+        for k in 0..3 {
+            let b = w
+                .add_multibody(
+                    &format!("b{k}"),
+                    lone_body(
+                        "b",
+                        Shape::Box { size: Vec3::repeat(0.1) },
+                        RigidInertia::solid_box(0.5, Vec3::repeat(0.1)),
+                    ),
+                    &MeshOptions::default(),
+                )
+                .unwrap();
+            let q = &mut w.multibody_mut(b).state.q;
+            q[0] = 0.02 * k as f64;
+            q[2] = 0.06 + 0.12 * k as f64;
+            q[3] = 0.1;
+            q[6] = (1.0f64 - 0.01).sqrt();
+        }
+        for _ in 0..300 {
+            w.step().unwrap();
+        }
+        (0..3)
+            .flat_map(|k| w.multibody(k).state.q.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(run(), run());
+
+    let mut w = World::new(WorldOptions { max_substeps: 4, ..Default::default() });
+    w.add_multibody("p", pendulum(-3.0), &MeshOptions::default()).unwrap();
+    let alpha = w.advance(1.0).unwrap();
+    assert_eq!(w.stats().step, 4);
+    assert!((0.0..1.0).contains(&alpha));
+}
+
+#[test]
+fn a_sleeping_stack_sleeps_and_wakes_when_hit() {
+    let mut w = world_with_ground(WorldOptions::default(), Vec3::z());
+    let side = 0.1;
+    let make = || {
+        lone_body(
+            "b",
+            Shape::Box { size: Vec3::repeat(side) },
+            RigidInertia::solid_box(0.5, Vec3::repeat(side)),
+        )
+    };
+    for k in 0..3 {
+        let b = w.add_multibody(&format!("b{k}"), make(), &MeshOptions::default()).unwrap();
+        w.multibody_mut(b).state.q[2] = side / 2.0 + side * k as f64;
+    }
+    for _ in 0..1000 {
+        w.step().unwrap();
+    }
+    assert_eq!(w.stats().asleep, 3, "all asleep: {:?}", w.stats());
+    let top = w.multibody(2).state.q.clone();
+    for _ in 0..100 {
+        w.step().unwrap();
+    }
+    assert_eq!(w.multibody(2).state.q, top, "asleep bodies do not move");
+    // A ball thrown at the top box wakes it.
+    let ball = w
+        .add_multibody(
+            "ball",
+            lone_body("ball", Shape::Sphere { radius: 0.05 }, RigidInertia::solid_sphere(1.0, 0.05)),
+            &MeshOptions::default(),
+        )
+        .unwrap();
+    {
+        let s = &mut w.multibody_mut(ball).state;
+        s.q[0] = -0.3;
+        s.q[2] = 0.25;
+        s.v[0] = 5.0;
+    }
+    for _ in 0..200 {
+        w.step().unwrap();
+    }
+    assert!((w.multibody(2).state.q.clone() - top).norm() > 1e-3, "the top box was hit and moved");
+}
