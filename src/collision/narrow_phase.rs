@@ -8,13 +8,14 @@ use parry3d_f64::math::{Pose, Real};
 use parry3d_f64::query::details::{
     contact_manifold_ball_ball_shapes, contact_manifold_capsule_capsule_shapes,
     contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
-    contact_manifold_halfspace_pfm, contact_manifold_pfm_pfm_shapes,
+    contact_manifold_pfm_pfm_shapes,
 };
+use parry3d_f64::query::TrackedContact;
 use parry3d_f64::query::{
     ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
     Unsupported,
 };
-use parry3d_f64::shape::Shape as ParryShape;
+use parry3d_f64::shape::{HalfSpace, PackedFeatureId, PolygonalFeature, Shape as ParryShape};
 use std::collections::HashMap;
 
 /// Manifolds of one pair, as parry writes them.
@@ -48,10 +49,10 @@ impl PairCache {
 ///
 /// | A \ B | sphere | box | capsule | cylinder, hull | half-space | trimesh, heightfield |
 /// |---|---|---|---|---|---|---|
-/// | sphere | ball–ball | convex–ball | convex–ball | convex–ball | convex–ball | per triangle |
-/// | box | convex–ball | box–box (SAT + clipping) | polygonal features | polygonal features | half-space–features | per triangle |
-/// | capsule | convex–ball | polygonal features | capsule–capsule | polygonal features | half-space–features | per triangle |
-/// | cylinder, hull | convex–ball | polygonal features | polygonal features | polygonal features | half-space–features | per triangle |
+/// | sphere | ball–ball | convex–ball | convex–ball | convex–ball | sphere–plane (ours) | per triangle |
+/// | box | convex–ball | box–box (SAT + clipping) | polygonal features | polygonal features | half-space–features (ours) | per triangle |
+/// | capsule | convex–ball | polygonal features | capsule–capsule | polygonal features | half-space–features (ours) | per triangle |
+/// | cylinder, hull | convex–ball | polygonal features | polygonal features | polygonal features | half-space–features (ours) | per triangle |
 ///
 /// "Polygonal features" is GJK/EPA for the normal followed by clipping of the two support
 /// features; "per triangle" runs the convex rules against each triangle near the other shape.
@@ -72,27 +73,21 @@ pub(crate) fn dispatch(
             state.manifolds.push(Manifold::new());
         }
         let m = &mut state.manifolds[0];
+        // Parry copies the previous points to match contacts across steps; we match by feature
+        // ids ourselves, so clearing first keeps that copy from allocating every step.
+        m.points.clear();
         match (kind_a, kind_b) {
             (Sphere, Sphere) => contact_manifold_ball_ball_shapes(pos_ab, shape_a, shape_b, prediction, m),
             (Box, Box) => contact_manifold_cuboid_cuboid_shapes(pos_ab, shape_a, shape_b, prediction, m),
             (Capsule, Capsule) => {
                 contact_manifold_capsule_capsule_shapes(pos_ab, shape_a, shape_b, prediction, m)
             }
-            (Sphere, _) | (_, Sphere) => {
-                contact_manifold_convex_ball_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m)
-            }
             (_, HalfSpace) => {
                 let half_space = shape_b.as_halfspace().ok_or(Unsupported)?;
-                let (features, border) = shape_a.as_polygonal_feature_map().ok_or(Unsupported)?;
-                contact_manifold_halfspace_pfm(
-                    &pos_ab.inverse(),
-                    half_space,
-                    features,
-                    border,
-                    prediction,
-                    m,
-                    true,
-                )
+                convex_against_half_space(pos_ab, shape_a, half_space, prediction, m)?;
+            }
+            (Sphere, _) | (_, Sphere) => {
+                contact_manifold_convex_ball_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m)
             }
             _ => contact_manifold_pfm_pfm_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m),
         }
@@ -107,4 +102,50 @@ pub(crate) fn dispatch(
             &mut state.workspace,
         )
     }
+}
+
+/// A convex shape A against the half-space B (the most common pair: everything on the ground):
+/// the vertices of A's support feature toward the plane within `prediction`, or the sphere's
+/// lowest point. Written here rather than taken from parry because parry's version allocates on
+/// every call; the result is the same manifold.
+fn convex_against_half_space(
+    pos_ab: &Pose,
+    shape_a: &dyn ParryShape,
+    half_space: &HalfSpace,
+    prediction: Real,
+    m: &mut Manifold,
+) -> Result<(), Unsupported> {
+    // The plane in A's frame: normal n (pointing out of the half-space, toward A), through o.
+    let n = pos_ab.rotation * half_space.normal;
+    let o = pos_ab.translation;
+    let pos_ba = pos_ab.inverse();
+    let mut emit = |point_a: parry3d_f64::math::Vector, border: Real, fid: PackedFeatureId| {
+        let distance = (point_a - o).dot(n) - border;
+        if distance <= prediction {
+            let on_a = point_a - n * border;
+            let on_plane = on_a - n * distance;
+            m.points.push(TrackedContact::new(
+                on_a,
+                pos_ba * on_plane,
+                fid,
+                PackedFeatureId::face(0),
+                distance,
+            ));
+        }
+    };
+    if let Some(ball) = shape_a.as_ball() {
+        emit(parry3d_f64::math::Vector::ZERO, ball.radius, PackedFeatureId::face(0));
+    } else {
+        let (features, border) = shape_a.as_polygonal_feature_map().ok_or(Unsupported)?;
+        let mut feature = PolygonalFeature::default();
+        features.local_support_feature(-n, &mut feature);
+        for i in 0..feature.num_vertices {
+            emit(feature.vertices[i], border, feature.vids[i]);
+        }
+    }
+    m.local_n1 = -n;
+    m.local_n2 = half_space.normal;
+    m.subshape1 = 0;
+    m.subshape2 = 0;
+    Ok(())
 }

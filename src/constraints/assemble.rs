@@ -128,13 +128,15 @@ impl ProblemBuilder {
             }
             minv(problem.minv_jt.column_mut(i).as_mut_slice());
         }
-        problem.delassus.gemm(1.0, &problem.jacobian, &problem.minv_jt, 0.0);
-        // A is symmetric in exact arithmetic; make it so in floating point.
-        for i in 0..n {
-            for j in 0..i {
-                let m = 0.5 * (problem.delassus[(i, j)] + problem.delassus[(j, i)]);
-                problem.delassus[(i, j)] = m;
-                problem.delassus[(j, i)] = m;
+        // A = J (M⁻¹Jᵀ), symmetric: the lower triangle from contiguous rows of J and columns of
+        // M⁻¹Jᵀ, mirrored (a hand loop: nalgebra's dynamic gemm allocates a packing buffer).
+        for j in 0..n {
+            let x = problem.minv_jt.column(j);
+            let x = x.as_slice();
+            for i in j..n {
+                let a: f64 = self.row(i).iter().zip(x).map(|(a, b)| a * b).sum();
+                problem.delassus[(i, j)] = a;
+                problem.delassus[(j, i)] = a;
             }
         }
         problem.bias.gemv(1.0, &problem.jacobian, v_free, 0.0);

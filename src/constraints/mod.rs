@@ -149,7 +149,9 @@ impl ConstraintProblem {
     pub fn velocities(&self, lambda: &DVector<f64>, w: &mut DVector<f64>) {
         w.copy_from(&self.bias);
         w.gemv(1.0, &self.delassus, lambda, 1.0);
-        w.zip_apply(&self.regularization.component_mul(lambda), |wi, r| *wi += r);
+        for i in 0..w.len() {
+            w[i] += self.regularization[i] * lambda[i];
+        }
     }
 
     /// A problem given directly by its matrix and vectors (no Jacobian): for tests, imported

@@ -18,7 +18,7 @@ pub struct Fallback {
 #[derive(Clone, Debug, PartialEq)]
 pub struct ChainReport {
     /// The solver whose answer was taken.
-    pub solver: String,
+    pub solver: &'static str,
     /// Its iterations or pivots.
     pub iterations: usize,
     /// Residuals of the answer.
@@ -63,7 +63,11 @@ impl SolverChain {
         let mut fallbacks = Vec::new();
         let count = self.solvers.len();
         for (k, solver) in self.solvers.iter_mut().enumerate() {
-            self.candidate.clone_from(lambda);
+            if self.candidate.len() == lambda.len() {
+                self.candidate.copy_from(lambda);
+            } else {
+                self.candidate.clone_from(lambda);
+            }
             match solver.solve(problem, &mut self.candidate) {
                 Ok(info) => {
                     let r = residuals(problem, &self.candidate, &mut self.w);
@@ -76,9 +80,13 @@ impl SolverChain {
                                 reason: format!("accepted above tolerance: residual {certified:.3e}"),
                             });
                         }
-                        lambda.clone_from(&self.candidate);
+                        if lambda.len() == self.candidate.len() {
+                            lambda.copy_from(&self.candidate);
+                        } else {
+                            lambda.clone_from(&self.candidate);
+                        }
                         return Ok(ChainReport {
-                            solver: solver.name().to_string(),
+                            solver: solver.name(),
                             iterations: info.iterations,
                             residuals: r,
                             fallbacks,

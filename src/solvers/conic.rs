@@ -162,7 +162,7 @@ impl Default for ClarabelSolver {
 }
 
 impl ConstraintSolver for ClarabelSolver {
-    fn name(&self) -> &str {
+    fn name(&self) -> &'static str {
         "clarabel"
     }
 

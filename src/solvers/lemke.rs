@@ -281,7 +281,7 @@ impl Default for LemkeSolver {
 }
 
 impl ConstraintSolver for LemkeSolver {
-    fn name(&self) -> &str {
+    fn name(&self) -> &'static str {
         "lemke"
     }
 

@@ -71,7 +71,7 @@ pub struct SolveInfo {
 /// A solver of constraint problems.
 pub trait ConstraintSolver {
     /// Short name (`lemke`, `clarabel`, `pgs`).
-    fn name(&self) -> &str;
+    fn name(&self) -> &'static str;
     /// Solves `problem`, writing impulses (N·s) into `lambda`, which holds a warm start on entry
     /// (resized and zeroed by the solver if its length is wrong).
     fn solve(

@@ -36,7 +36,7 @@ impl PgsSolver {
 }
 
 impl ConstraintSolver for PgsSolver {
-    fn name(&self) -> &str {
+    fn name(&self) -> &'static str {
         "pgs"
     }
 

@@ -80,7 +80,7 @@ pub struct StepStats {
     /// Constraint rows.
     pub rows: usize,
     /// Solver whose answer was used (empty when no rows).
-    pub solver: String,
+    pub solver: &'static str,
     /// Its iterations or pivots.
     pub iterations: usize,
     /// Its certifying residual (m/s).
@@ -503,13 +503,13 @@ impl World {
         let energy = if self.options.diagnostics { Some(self.total_energy()) } else { None };
         lap(5, &mut clock);
         let report = report.unwrap_or_else(|| crate::solvers::ChainReport {
-            solver: String::new(),
+            solver: "",
             iterations: 0,
             residuals: Default::default(),
             fallbacks: Vec::new(),
             note: None,
         });
-        let certify = self.chain.certify(&report.solver, &report.residuals);
+        let certify = self.chain.certify(report.solver, &report.residuals);
         self.stats = StepStats {
             step: self.steps,
             time: self.time,
