@@ -205,3 +205,85 @@ pub enum CollisionError {
         got: usize,
     },
 }
+
+/// An MJCF (MuJoCo XML) document that cannot become a scene, from [`crate::io::mjcf`]. Every
+/// variant names the file (`<string>` for text); all but [`MjcfError::Io`] and
+/// [`MjcfError::Xml`] (raised before any element exists) also name the element concerned, as
+/// `<tag name="…"> at line N`.
+#[derive(Debug, Error)]
+pub enum MjcfError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Io {
+        /// File path.
+        file: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Not well-formed XML; the parser's message gives the position.
+    #[error("{file}: not well-formed XML: {message}")]
+    Xml {
+        /// File path.
+        file: String,
+        /// The XML parser's message, with line and column.
+        message: String,
+    },
+    /// An attribute value that is not usable: not a number, the wrong count of numbers, out of
+    /// range (such as a negative size), or an unknown keyword (such as an unknown geom type).
+    #[error("{file}: {element}: attribute {attribute}=\"{value}\": {what}")]
+    InvalidAttribute {
+        /// File path.
+        file: String,
+        /// The element, as `<tag name="…"> at line N`.
+        element: String,
+        /// Attribute name.
+        attribute: String,
+        /// The value as written (possibly inherited from a `<default>` class).
+        value: String,
+        /// What is wrong.
+        what: String,
+    },
+    /// A required attribute is absent (and not given by a `<default>` class either).
+    #[error("{file}: {element}: attribute `{attribute}` is required")]
+    MissingAttribute {
+        /// File path.
+        file: String,
+        /// The element, as `<tag name="…"> at line N`.
+        element: String,
+        /// Attribute name.
+        attribute: String,
+    },
+    /// A valid MJCF feature that changes the dynamics or the contacts but that gelenk cannot
+    /// represent (mesh geoms, tendons, equality constraints, joint springs, mocap bodies, …).
+    #[error("{file}: {element}: not supported by gelenk: {what}")]
+    Unsupported {
+        /// File path.
+        file: String,
+        /// The element, as `<tag name="…"> at line N`.
+        element: String,
+        /// What is not supported.
+        what: String,
+    },
+    /// A structural error: wrong root element, unknown default class, a free joint below a
+    /// moving body, a plane on a moving body, ….
+    #[error("{file}: {element}: {what}")]
+    Invalid {
+        /// File path.
+        file: String,
+        /// The element, as `<tag name="…"> at line N`.
+        element: String,
+        /// What is wrong.
+        what: String,
+    },
+    /// The scene is well-formed but the model builder rejected it (duplicate names, invalid
+    /// inertia, …).
+    #[error("{file}: {element}: {source}")]
+    Model {
+        /// File path.
+        file: String,
+        /// The body or joint element the model error is about (`<worldbody>` if unknown).
+        element: String,
+        /// The model error.
+        source: ModelError,
+    },
+}

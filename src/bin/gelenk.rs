@@ -42,6 +42,37 @@ enum Command {
         #[arg(long)]
         states: PathBuf,
     },
+    /// Step a built-in scene and write each step's constraint problem (problem.json, cone.json,
+    /// lcp.npz, qp.npz for QPs, meta.json) into OUT/step-NNNN/.
+    ExportProblems {
+        /// Built-in scene: box-drop, box-flat, stack2, stack10, sphere-incline, four-bar,
+        /// limit-pendulum.
+        scene: String,
+        /// Number of steps to simulate.
+        #[arg(long)]
+        steps: usize,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+        /// Friction model of the contact rows: `cone` or `pyramid:K` (K ≥ 3 facets).
+        #[arg(long, default_value = "cone")]
+        friction: String,
+        /// Write only these steps (comma-separated); default: every step that has rows.
+        #[arg(long, value_delimiter = ',')]
+        only: Vec<usize>,
+    },
+    /// Solve one exported problem again (a problem.json or its directory); print status,
+    /// residuals and time, and compare with meta.json when it is there.
+    SolveProblem {
+        /// problem.json, or a directory holding one.
+        file: PathBuf,
+        /// Solver.
+        #[arg(long, value_parser = ["lemke", "clarabel", "pgs"])]
+        solver: String,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Time algorithms in-process (median over rounds, after warm-up).
     Bench {
         #[command(subcommand)]
@@ -72,6 +103,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect { model, floating, json } => inspect(&model, floating, json),
         Command::Dynamics { model, floating, states } => dynamics(&model, floating, &states),
+        Command::ExportProblems { scene, steps, out, friction, only } => {
+            export_problems(&scene, steps, &out, &friction, &only)
+        }
+        Command::SolveProblem { file, solver, json } => solve_problem(&file, &solver, json),
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
         }
@@ -152,7 +187,7 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
             println!("collision geometry: none");
         } else {
             println!("collision geometry:");
-            println!("{:<24} {:<24} {:<11} {}", "body", "link", "shape", "parameters");
+            println!("{:<24} {:<24} {:<11} parameters", "body", "link", "shape");
         }
         for (g, resolved) in geometry {
             let file = match (&g.shape, resolved) {
@@ -316,6 +351,146 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
         for (name, ns) in [("rnea", rnea_ns), ("crba", crba_ns), ("aba", aba_ns), ("nle", nle_ns)] {
             println!("{name:<6} {ns:>10.0} ns/call");
         }
+    }
+    Ok(())
+}
+
+fn parse_friction(text: &str) -> Result<gelenk::constraints::FrictionModel, String> {
+    use gelenk::constraints::FrictionModel;
+    match text.split_once(':') {
+        None if text == "cone" => Ok(FrictionModel::Cone),
+        Some(("pyramid", k)) => match k.parse::<usize>() {
+            Ok(facets) if facets >= 3 => Ok(FrictionModel::Pyramid { facets }),
+            _ => Err(format!("--friction {text}: a pyramid needs an integer number of facets ≥ 3")),
+        },
+        _ => Err(format!("--friction {text}: expected `cone` or `pyramid:K`")),
+    }
+}
+
+fn export_problems(
+    scene: &str,
+    steps: usize,
+    out: &Path,
+    friction: &str,
+    only: &[usize],
+) -> Result<(), String> {
+    use gelenk::io::problem::{write_problem, ProblemMeta};
+    use gelenk::solvers::{ClarabelSolver, ConstraintSolver};
+    let mut scene = gelenk::scenes::Scene::new(scene).map_err(|e| e.to_string())?;
+    scene.friction = parse_friction(friction)?;
+    let mut problem = gelenk::constraints::ConstraintProblem::default();
+    let mut lambda = DVector::zeros(0);
+    let mut written = 0;
+    for step in 0..steps {
+        scene.problem(&mut problem).map_err(|e| e.to_string())?;
+        if problem.rows() > 0 && (only.is_empty() || only.contains(&step)) {
+            let meta = ProblemMeta::compute(&scene.name, step, scene.h, &problem);
+            let dir = out.join(format!("step-{step:04}"));
+            write_problem(&dir, &problem, &meta).map_err(|e| e.to_string())?;
+            let outcome = |name: &str| {
+                let r = &meta.solutions[name];
+                match r.certified {
+                    Some(c) => format!("{name} {:?} {c:.1e}", r.status).to_lowercase(),
+                    None => format!("{name} failed"),
+                }
+            };
+            println!(
+                "{}: {} rows, {} contacts, {}; {}, {}, {}",
+                dir.display(),
+                meta.rows,
+                meta.contacts,
+                meta.formulation,
+                outcome("clarabel"),
+                outcome("lemke"),
+                outcome("pgs")
+            );
+            written += 1;
+        }
+        // The scene goes on with clarabel's impulses (the reference solution).
+        ClarabelSolver::default()
+            .solve(&problem, &mut lambda)
+            .map_err(|e| format!("{} step {step}: {e}", scene.name))?;
+        scene.advance(&problem, &lambda);
+    }
+    println!("wrote {written} problems of {steps} steps to {}", out.display());
+    Ok(())
+}
+
+fn solve_problem(path: &Path, solver: &str, as_json: bool) -> Result<(), String> {
+    use gelenk::io::problem::{read_meta, read_problem, run_solver, CorpusSolver, SolveStatus, META_FILE};
+    let kind: CorpusSolver = solver.parse()?;
+    let problem = read_problem(path).map_err(|e| e.to_string())?;
+    let meta_path = if path.is_dir() { path.join(META_FILE) } else { path.with_file_name(META_FILE) };
+    let meta =
+        if meta_path.exists() { Some(read_meta(&meta_path).map_err(|e| e.to_string())?) } else { None };
+    let (record, elapsed) = run_solver(kind, &problem);
+    let tolerance =
+        meta.as_ref().and_then(|m| m.tolerances.get(kind.name()).copied()).unwrap_or(kind.tolerance());
+    // Largest |w − w_ref| when this solver's w must equal the reference's.
+    let w_error = meta.as_ref().and_then(|m| {
+        let reference = &m.solutions.get(&m.reference)?.w;
+        let unique = m.w_unique_for.iter().any(|s| s == kind.name());
+        (unique && reference.len() == record.w.len())
+            .then(|| record.w.iter().zip(reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max))
+    });
+    let expected = meta.as_ref().and_then(|m| m.solutions.get(kind.name())).map(|r| r.status);
+    let time_us = elapsed.as_secs_f64() * 1e6;
+    if as_json {
+        let out = json!({
+            "file": path.display().to_string(), "solver": kind.name(), "rows": problem.rows(),
+            "contacts": problem.contacts.len(), "formulation": gelenk::io::problem::formulation(&problem),
+            "status": record.status, "message": record.message, "iterations": record.iterations,
+            "certified": record.certified, "tolerance": tolerance, "objective": record.objective,
+            "residuals": record.residuals, "time_us": time_us, "expected_status": expected,
+            "w_error": w_error, "lambda": record.lambda, "w": record.w,
+        });
+        println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
+    } else {
+        println!(
+            "{}: {} rows, {} contacts, {}; solver {}",
+            path.display(),
+            problem.rows(),
+            problem.contacts.len(),
+            gelenk::io::problem::formulation(&problem),
+            kind.name()
+        );
+        let status = format!("{:?}", record.status).to_lowercase();
+        println!(
+            "status      {status} ({} iterations){}",
+            record.iterations,
+            match &record.message {
+                Some(m) => format!(": {m}"),
+                None => String::new(),
+            }
+        );
+        if let Some(expected) = expected {
+            println!("meta.json   {}", format!("{expected:?}").to_lowercase());
+        }
+        if let (Some(c), Some(r)) = (record.certified, &record.residuals) {
+            println!("certified   {c:.3e} m/s (tolerance {tolerance:.0e})");
+            println!(
+                "residuals   signorini {:.2e}, bilateral {:.2e}, bounded {:.2e}, friction {:.2e}, dissipation {:.2e}, conic KKT {:.2e}",
+                r.signorini, r.bilateral, r.bounded, r.friction_feasibility, r.dissipation, r.conic_kkt
+            );
+            if let (Some(p), Some(d), Some(g)) = (r.qp_primal, r.qp_dual, r.qp_gap) {
+                println!("qp          primal {p:.2e}, dual {d:.2e}, gap {g:.2e}");
+            }
+        }
+        if let Some(o) = record.objective {
+            println!("objective   {o:.12e}");
+        }
+        if let Some(e) = w_error {
+            println!("|w − w_ref| {e:.3e} m/s");
+        }
+        println!("time        {time_us:.1} µs");
+    }
+    if record.status == SolveStatus::Failed {
+        return Err(format!(
+            "{}: {} failed: {}",
+            path.display(),
+            kind.name(),
+            record.message.as_deref().unwrap_or("no solution")
+        ));
     }
     Ok(())
 }

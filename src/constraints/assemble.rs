@@ -104,11 +104,26 @@ impl ProblemBuilder {
     }
 
     /// Builds the problem into `problem` with `minv` applying M⁻¹ in place to a vector of nv
-    /// entries, and `v_free` the free velocity.
+    /// entries, and `v_free` the free velocity (one velocity block).
     pub fn build_into(
         &self,
         v_free: &DVector<f64>,
         mut minv: impl FnMut(&mut [f64]),
+        problem: &mut ConstraintProblem,
+    ) {
+        let blocks = [(0, self.nv)];
+        self.build_into_blocks(v_free, &blocks, |_, x| minv(x), problem);
+    }
+
+    /// Builds the problem into `problem` for a block-diagonal M: `blocks[b]` = (first column,
+    /// width) of block b (a multibody), and `minv(b, x)` applies block b's M⁻¹ in place to its
+    /// slice `x`. Rows touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block,
+    /// and the block structure is kept in [`ConstraintProblem::sparsity`].
+    pub fn build_into_blocks(
+        &self,
+        v_free: &DVector<f64>,
+        blocks: &[(usize, usize)],
+        mut minv: impl FnMut(usize, &mut [f64]),
         problem: &mut ConstraintProblem,
     ) {
         let (n, nv) = (self.len(), self.nv);
@@ -120,28 +135,102 @@ impl ProblemBuilder {
             problem.bias = DVector::zeros(n);
             problem.target = DVector::zeros(n);
         }
+        // Which blocks each row touches, with the row's J and M⁻¹Jᵀ entries on each.
+        let sp = &mut problem.sparsity;
+        sp.blocks.clear();
+        sp.blocks.extend_from_slice(blocks);
+        sp.row_start.clear();
+        sp.blocks_of_row.clear();
+        sp.segment_start.clear();
+        sp.j_values.clear();
+        sp.x_values.clear();
+        sp.row_start.push(0);
+        for i in 0..n {
+            let row = self.row(i);
+            for (b, &(col, width)) in blocks.iter().enumerate() {
+                let segment = &row[col..col + width];
+                if segment.iter().any(|x| *x != 0.0) {
+                    sp.blocks_of_row.push(b);
+                    sp.segment_start.push(sp.j_values.len());
+                    sp.j_values.extend_from_slice(segment);
+                    let x_start = sp.x_values.len();
+                    sp.x_values.extend_from_slice(segment);
+                    minv(b, &mut sp.x_values[x_start..]);
+                }
+            }
+            sp.row_start.push(sp.blocks_of_row.len());
+        }
+        // Rows of each block, by counting sort (rows stay in increasing order).
+        sp.block_start.clear();
+        sp.block_start.resize(blocks.len() + 1, 0);
+        for &b in &sp.blocks_of_row {
+            sp.block_start[b + 1] += 1;
+        }
+        for b in 0..blocks.len() {
+            sp.block_start[b + 1] += sp.block_start[b];
+        }
+        sp.rows_of_block.clear();
+        sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
+        for i in 0..n {
+            for e in sp.row_start[i]..sp.row_start[i + 1] {
+                let b = sp.blocks_of_row[e];
+                // block_start[b] is used as the fill cursor, then restored below.
+                sp.rows_of_block[sp.block_start[b]] = i;
+                sp.block_start[b] += 1;
+            }
+        }
+        for b in (0..blocks.len()).rev() {
+            sp.block_start[b + 1] = sp.block_start[b];
+        }
+        sp.block_start[0] = 0;
+        // Dense J and M⁻¹Jᵀ (for the velocity update, export and dense solvers).
+        problem.minv_jt.fill(0.0);
         for i in 0..n {
             let row = self.row(i);
             for (k, &x) in row.iter().enumerate() {
                 problem.jacobian[(i, k)] = x;
-                problem.minv_jt[(k, i)] = x;
-            }
-            minv(problem.minv_jt.column_mut(i).as_mut_slice());
-        }
-        // A = J (M⁻¹Jᵀ), symmetric: the lower triangle from contiguous rows of J and columns of
-        // M⁻¹Jᵀ, mirrored (a hand loop: nalgebra's dynamic gemm allocates a packing buffer).
-        for j in 0..n {
-            let x = problem.minv_jt.column(j);
-            let x = x.as_slice();
-            for i in j..n {
-                let a: f64 = self.row(i).iter().zip(x).map(|(a, b)| a * b).sum();
-                problem.delassus[(i, j)] = a;
-                problem.delassus[(j, i)] = a;
             }
         }
-        problem.bias.gemv(1.0, &problem.jacobian, v_free, 0.0);
         for i in 0..n {
-            problem.bias[i] -= self.targets[i];
+            let sp = &problem.sparsity;
+            for e in sp.row_start[i]..sp.row_start[i + 1] {
+                let (col, width) = sp.blocks[sp.blocks_of_row[e]];
+                let start = sp.segment_start[e];
+                for k in 0..width {
+                    problem.minv_jt[(col + k, i)] = sp.x_values[start + k];
+                }
+            }
+        }
+        // A = J (M⁻¹Jᵀ): per block, over the pairs of rows touching it (other blocks give zero).
+        problem.delassus.fill(0.0);
+        let sp = &problem.sparsity;
+        for b in 0..blocks.len() {
+            let rows = &sp.rows_of_block[sp.block_start[b]..sp.block_start[b + 1]];
+            let width = blocks[b].1;
+            let segment = |i: usize| -> std::ops::Range<usize> {
+                let e = (sp.row_start[i]..sp.row_start[i + 1]).find(|&e| sp.blocks_of_row[e] == b).unwrap_or(0);
+                sp.segment_start[e]..sp.segment_start[e] + width
+            };
+            for (p, &i) in rows.iter().enumerate() {
+                let ji = &sp.j_values[segment(i)];
+                for &j in &rows[..=p] {
+                    let xj = &sp.x_values[segment(j)];
+                    let a: f64 = ji.iter().zip(xj).map(|(p, q)| p * q).sum();
+                    problem.delassus[(i, j)] += a;
+                    if i != j {
+                        problem.delassus[(j, i)] += a;
+                    }
+                }
+            }
+        }
+        for i in 0..n {
+            let row = self.row(i);
+            let mut b = 0.0;
+            for &blk in problem.sparsity.row_blocks(i) {
+                let (col, width) = blocks[blk];
+                b += row[col..col + width].iter().zip(&v_free.as_slice()[col..col + width]).map(|(p, q)| p * q).sum::<f64>();
+            }
+            problem.bias[i] = b - self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }

@@ -120,6 +120,52 @@ pub struct ConstraintProblem {
     pub friction: FrictionModel,
     /// Origin of each row.
     pub origins: Vec<RowOrigin>,
+    /// Which velocity blocks (multibodies) each row touches, when the problem was assembled from
+    /// blocks: lets iterative solvers work in velocity space with sparse rows. Empty otherwise.
+    pub sparsity: RowSparsity,
+}
+
+/// Velocity blocks (one per multibody: first column and width) and, per row, the blocks its
+/// Jacobian row touches (`blocks_of_row[row_start[i]..row_start[i + 1]]`). M⁻¹ is block
+/// diagonal, so row i's column of M⁻¹Jᵀ is non-zero only on those blocks too.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RowSparsity {
+    /// (first column, width) of each block.
+    pub blocks: Vec<(usize, usize)>,
+    /// Offsets into `blocks_of_row`, one per row plus one.
+    pub row_start: Vec<usize>,
+    /// Block indices touched by each row, concatenated.
+    pub blocks_of_row: Vec<usize>,
+    /// For each (row, touched block) entry of `blocks_of_row`, the offset of its segments in
+    /// `j_values` and `x_values`.
+    pub segment_start: Vec<usize>,
+    /// J's entries of each (row, block) segment, contiguous.
+    pub j_values: Vec<f64>,
+    /// M⁻¹Jᵀ's entries of each (row, block) segment, contiguous.
+    pub x_values: Vec<f64>,
+    /// Rows touching each block: `rows_of_block[block_start[b]..block_start[b + 1]]`.
+    pub rows_of_block: Vec<usize>,
+    /// Offsets into `rows_of_block`, one per block plus one.
+    pub block_start: Vec<usize>,
+}
+
+impl RowSparsity {
+    /// Whether the structure is present.
+    pub fn is_empty(&self) -> bool {
+        self.row_start.is_empty()
+    }
+    /// Blocks touched by row `i`.
+    pub fn row_blocks(&self, i: usize) -> &[usize] {
+        &self.blocks_of_row[self.row_start[i]..self.row_start[i + 1]]
+    }
+    /// The segments of row `i`: (first column, J entries, M⁻¹Jᵀ entries) per touched block.
+    pub fn row_segments(&self, i: usize) -> impl Iterator<Item = (usize, &[f64], &[f64])> + '_ {
+        (self.row_start[i]..self.row_start[i + 1]).map(move |e| {
+            let (col, width) = self.blocks[self.blocks_of_row[e]];
+            let start = self.segment_start[e];
+            (col, &self.j_values[start..start + width], &self.x_values[start..start + width])
+        })
+    }
 }
 
 impl Default for ConstraintProblem {
@@ -135,6 +181,7 @@ impl Default for ConstraintProblem {
             contacts: Vec::new(),
             friction: FrictionModel::Cone,
             origins: Vec::new(),
+            sparsity: RowSparsity::default(),
         }
     }
 }
@@ -172,6 +219,7 @@ impl ConstraintProblem {
             target: DVector::zeros(n),
             bias,
             origins: vec![RowOrigin::Other; laws.len()],
+            sparsity: RowSparsity::default(),
             laws,
             contacts,
             friction,

@@ -291,6 +291,12 @@ impl ConstraintSolver for LemkeSolver {
         lambda: &mut DVector<f64>,
     ) -> Result<SolveInfo, SolverError> {
         check_problem(problem)?;
+        if matches!(problem.friction, FrictionModel::Cone) && self.facets < 3 {
+            return Err(SolverError::InvalidProblem(format!(
+                "a friction cone needs a pyramid of at least 3 facets, Lemke was given {}",
+                self.facets
+            )));
+        }
         let lcp = lcp_of(problem, self.facets);
         let (z, pivots) = lemke(&lcp.m, &lcp.q, &self.options)?;
         // Verify before returning: the LCP's own natural residual, relative to the data.

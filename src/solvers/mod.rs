@@ -13,10 +13,10 @@ pub mod residuals;
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};
 pub use lemke::{lcp_of, lemke, Lcp, LemkeOptions, LemkeSolver};
-pub use pgs::PgsSolver;
+pub use pgs::{PgsSolver, PgsWorkspace};
 pub use residuals::{residuals, QpResiduals, Residuals};
 
-use crate::constraints::ConstraintProblem;
+use crate::constraints::{ConstraintProblem, RowLaw};
 use nalgebra::DVector;
 use thiserror::Error;
 
@@ -105,12 +105,36 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
     {
         return bad("A, b or R holds NaN or infinity".into());
     }
-    for c in &problem.contacts {
+    for (k, c) in problem.contacts.iter().enumerate() {
         if c.normal + 2 >= n {
             return bad(format!("contact block at row {} exceeds {n} rows", c.normal));
         }
         if !(c.mu >= 0.0 && c.mu2 >= 0.0 && c.mu.is_finite() && c.mu2.is_finite()) {
             return bad(format!("contact at row {}: friction coefficients must be finite and ≥ 0", c.normal));
+        }
+        let friction = RowLaw::Friction { contact: k };
+        if problem.laws[c.normal] != RowLaw::Unilateral
+            || problem.laws[c.normal + 1] != friction
+            || problem.laws[c.normal + 2] != friction
+        {
+            return bad(format!(
+                "contact {k}: rows {}..{} must be a unilateral normal and two friction rows naming it",
+                c.normal,
+                c.normal + 2
+            ));
+        }
+    }
+    for (i, law) in problem.laws.iter().enumerate() {
+        if let RowLaw::Friction { contact } = *law {
+            let ok = problem.contacts.get(contact).is_some_and(|c| i == c.normal + 1 || i == c.normal + 2);
+            if !ok {
+                return bad(format!("row {i}: friction row names contact {contact}, which does not own it"));
+            }
+        }
+        if let RowLaw::Bounded { lo, hi } = *law {
+            if lo.is_nan() || hi.is_nan() || lo > hi {
+                return bad(format!("row {i}: bounds [{lo}, {hi}] are not an interval"));
+            }
         }
     }
     if let crate::constraints::FrictionModel::Pyramid { facets } = problem.friction {

@@ -20,11 +20,19 @@ pub struct PgsSolver {
     pub omega: f64,
     /// Start from the impulses passed in (else from zero).
     pub warm_start: bool,
+    /// Scratch space reused between solves (leave it at its default).
+    pub workspace: PgsWorkspace,
+}
+
+/// Scratch space of [`PgsSolver`]: the velocity change M⁻¹Jᵀλ of the velocity-space sweeps.
+#[derive(Clone, Debug, Default)]
+pub struct PgsWorkspace {
+    dv: DVector<f64>,
 }
 
 impl Default for PgsSolver {
     fn default() -> Self {
-        Self { iterations: 50, tolerance: 1e-9, omega: 1.0, warm_start: true }
+        Self { iterations: 50, tolerance: 1e-9, omega: 1.0, warm_start: true, workspace: PgsWorkspace::default() }
     }
 }
 
@@ -32,6 +40,11 @@ impl PgsSolver {
     /// PGS with `iterations` sweeps and default tolerance and relaxation.
     pub fn with_iterations(iterations: usize) -> Self {
         Self { iterations, ..Self::default() }
+    }
+
+    /// PGS with every setting given.
+    pub fn new(iterations: usize, tolerance: f64, omega: f64, warm_start: bool) -> Self {
+        Self { iterations, tolerance, omega, warm_start, workspace: PgsWorkspace::default() }
     }
 }
 
@@ -52,9 +65,43 @@ impl ConstraintSolver for PgsSolver {
         }
         let a = &problem.delassus;
         let diag = |i: usize| a[(i, i)] + problem.regularization[i];
-        // Row velocity w_i = (A + R)_i λ + b_i; A is symmetric, so its column is its row.
+        // With the block structure, sweep in velocity space (ODE's QuickStep): keep
+        // dv = M⁻¹Jᵀλ, so that w_i = J_i (v_free + dv) − u*_i + R_i λ_i costs a few entries;
+        // otherwise use the dense row of A.
+        let sparse = !problem.sparsity.is_empty()
+            && problem.minv_jt.ncols() == n
+            && problem.jacobian.nrows() == n
+            && problem.minv_jt.nrows() == problem.jacobian.ncols();
+        let nv = problem.jacobian.ncols();
+        if sparse {
+            if self.workspace.dv.len() != nv {
+                self.workspace.dv = DVector::zeros(nv);
+            }
+            self.workspace.dv.fill(0.0);
+            for i in 0..n {
+                if lambda[i] != 0.0 {
+                    axpy_blocks(problem, i, lambda[i], &mut self.workspace.dv);
+                }
+            }
+        }
+        let dv = std::cell::RefCell::new(std::mem::take(&mut self.workspace.dv));
         let w = |i: usize, lambda: &DVector<f64>| {
-            a.column(i).dot(lambda) + problem.regularization[i] * lambda[i] + problem.bias[i]
+            if sparse {
+                let dv = dv.borrow();
+                let dv = dv.as_slice();
+                let mut jdv = 0.0;
+                for (col, j, _) in problem.sparsity.row_segments(i) {
+                    jdv += j.iter().zip(&dv[col..col + j.len()]).map(|(a, b)| a * b).sum::<f64>();
+                }
+                jdv + problem.regularization[i] * lambda[i] + problem.bias[i]
+            } else {
+                a.column(i).dot(lambda) + problem.regularization[i] * lambda[i] + problem.bias[i]
+            }
+        };
+        let moved = |i: usize, delta: f64| {
+            if sparse && delta != 0.0 {
+                axpy_blocks(problem, i, delta, &mut dv.borrow_mut());
+            }
         };
         let mut sweeps = 0;
         for _ in 0..self.iterations {
@@ -78,10 +125,14 @@ impl ConstraintSolver for PgsSolver {
                         }
                         let (o1, o2) = (lambda[t1], lambda[t2]);
                         lambda[t1] = o1 - self.omega * w(t1, lambda) / d;
+                        moved(t1, lambda[t1] - o1);
                         let d2 = diag(t2);
+                        let before = lambda[t2];
                         if d2 > 0.0 {
                             lambda[t2] = o2 - self.omega * w(t2, lambda) / d2;
                         }
+                        moved(t2, lambda[t2] - before);
+                        let (u1, u2) = (lambda[t1], lambda[t2]);
                         let (p1, p2) = project_friction(
                             lambda[t1],
                             lambda[t2],
@@ -92,18 +143,32 @@ impl ConstraintSolver for PgsSolver {
                         );
                         lambda[t1] = p1;
                         lambda[t2] = p2;
+                        moved(t1, p1 - u1);
+                        moved(t2, p2 - u2);
                         change = change.max(d * (p1 - o1).abs()).max(d2 * (p2 - o2).abs());
                         continue;
                     }
                 };
                 lambda[i] = new;
+                moved(i, new - old);
                 change = change.max(d * (new - old).abs());
             }
             if change <= self.tolerance {
                 break;
             }
         }
+        self.workspace.dv = dv.into_inner();
         Ok(SolveInfo { iterations: sweeps, note: None })
+    }
+}
+
+/// dv[blocks of row i] += δ · (M⁻¹Jᵀ)_i.
+fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, dv: &mut DVector<f64>) {
+    let dv = dv.as_mut_slice();
+    for (col, _, x) in problem.sparsity.row_segments(i) {
+        for (d, x) in dv[col..col + x.len()].iter_mut().zip(x) {
+            *d += delta * x;
+        }
     }
 }
 

@@ -11,6 +11,9 @@ pub struct Residuals {
     /// Signorini: max over unilateral rows of |min(d_i λ_i, w_i)| (the natural-map residual; 0 iff
     /// `0 ≤ λ ⟂ w ≥ 0`).
     pub signorini: f64,
+    /// Signorini residual restricted to unilateral rows that are not contact normals (joint
+    /// limits): these obey Signorini in the convex relaxation too.
+    pub signorini_limits: f64,
     /// Max |λ_i w_i| over unilateral rows (N·s · m/s): the LCP complementarity product.
     pub complementarity: f64,
     /// Max |w_i| over bilateral rows.
@@ -84,7 +87,11 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         let (li, wi, di) = (lambda[i], w[i], d(i));
         match problem.laws[i] {
             RowLaw::Unilateral => {
-                r.signorini = r.signorini.max((di * li).min(wi).abs());
+                let natural = (di * li).min(wi).abs();
+                r.signorini = r.signorini.max(natural);
+                if !problem.contacts.iter().any(|c| c.normal == i) {
+                    r.signorini_limits = r.signorini_limits.max(natural);
+                }
                 r.complementarity = r.complementarity.max((li * wi).abs());
                 qp.primal = qp.primal.max(-li);
                 qp.dual = qp.dual.max(-wi);
@@ -144,13 +151,27 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
                     })
                     .fold(f64::NEG_INFINITY, f64::max),
             };
+        // Per unit of the friction bound, floored at the impulse that changes a velocity by
+        // 1 µm/s, so that the direction of a negligible impulse does not count.
         let bound = c.mu.max(c.mu2) * ln.max(0.0);
         if bound > 0.0 {
-            r.dissipation = r.dissipation.max(((best + w1 * l1 + w2 * l2) / bound).abs());
+            let floor = 1e-6 / scale;
+            r.dissipation = r.dissipation.max(((best + w1 * l1 + w2 * l2) / bound.max(floor)).abs());
         }
         // Convex relaxation (Anitescu): w ∈ K* (w_n ≥ ‖(μ w₁, μ₂ w₂)‖) and, per block,
         // λ_n (w_n − ‖(μ w₁, μ₂ w₂)‖) = 0 (friction opposing slip is the dissipation term).
-        let surplus = wn - m1.hypot(m2);
+        // The dual of the friction set: w_n ≥ max over the set's unit section of −f·w_t (the
+        // ellipse's ‖(μ w₁, μ₂ w₂)‖, or the pyramid's largest vertex term).
+        let support = match problem.friction {
+            FrictionModel::Cone => m1.hypot(m2),
+            FrictionModel::Pyramid { facets } => (0..facets)
+                .map(|j| {
+                    let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
+                    -(m1 * t.cos() + m2 * t.sin())
+                })
+                .fold(f64::NEG_INFINITY, f64::max),
+        };
+        let surplus = wn - support;
         r.conic_kkt = r.conic_kkt.max((-surplus).max(0.0)).max((scale * ln).min(surplus).abs());
         if frictionless {
             qp.primal = qp.primal.max(l1.abs()).max(l2.abs());

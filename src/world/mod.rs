@@ -115,6 +115,7 @@ pub struct World {
     contacts: Vec<Contact>,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
+    blocks: Vec<(usize, usize)>,
     nv_total: usize,
     time: f64,
     steps: u64,
@@ -142,6 +143,7 @@ impl World {
             contacts: Vec::new(),
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
+            blocks: Vec::new(),
             nv_total: 0,
             time: 0.0,
             steps: 0,
@@ -169,6 +171,7 @@ impl World {
         debug_assert_eq!(index, self.bodies.len());
         let mut body = Multibody::new(model);
         body.col = self.nv_total;
+        self.blocks.push((body.col, body.model.nv()));
         self.nv_total += body.model.nv();
         self.bodies.push(body);
         self.names.push(name.to_string());
@@ -447,16 +450,15 @@ impl World {
         let mut report = None;
         if rows > 0 {
             let bodies = &self.bodies;
-            self.builder.build_into(
+            self.builder.build_into_blocks(
                 &self.v_free_all,
-                |x| {
-                    for b in bodies {
-                        let slice = &mut x[b.col..b.col + b.model.nv()];
-                        if b.asleep || b.kinematic || !b.factored {
-                            slice.fill(0.0);
-                        } else {
-                            crate::algorithms::solve_mass_matrix_slice(&b.model, &b.data, slice);
-                        }
+                &self.blocks,
+                |k, slice| {
+                    let b = &bodies[k];
+                    if b.asleep || b.kinematic || !b.factored {
+                        slice.fill(0.0);
+                    } else {
+                        crate::algorithms::solve_mass_matrix_slice(&b.model, &b.data, slice);
                     }
                 },
                 &mut self.problem,

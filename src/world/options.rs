@@ -32,7 +32,7 @@ impl SolverKind {
             SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
             SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
             SolverKind::Pgs { iterations, omega } => {
-                Box::new(PgsSolver { iterations, omega, tolerance: 1e-10, warm_start: true })
+                Box::new(PgsSolver::new(iterations, 1e-10, omega, true))
             }
         }
     }

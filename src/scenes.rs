@@ -1,0 +1,351 @@
+//! Built-in scenes and a minimal time-stepping loop, for exporting constraint problems
+//! (`gelenk export-problems`) and for solver tests.
+//!
+//! **A stopgap until the World (issue 5) exists**: this module steps one multibody with a
+//! velocity-level scheme — free velocity `v_free = v + h·aba(q, v, τ = 0)`, constraint rows
+//! (contacts, joint limits, loop closures), the [`ConstraintProblem`] from [`assemble_single`],
+//! clarabel's impulses λ, `v⁺ = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v⁺` — and nothing else (no
+//! warm starts, no sleeping, one collision world per scene). Once the World exists, the scenes
+//! should be expressed through it and this loop removed.
+//!
+//! | scene | what | rows |
+//! |---|---|---|
+//! | `box-drop` | a tilted box thrown onto the ground, μ = 0.5 | 1–4 contacts, sliding, cone |
+//! | `box-flat` | a box sliding flat on the ground, μ = 0 | 4 coplanar contacts (degenerate), pure QP |
+//! | `stack2` | two boxes stacked on the ground, μ = 0.6 | 8 contacts, cone |
+//! | `stack10` | ten boxes stacked, μ = 0.6 | 40 contacts, cone |
+//! | `sphere-incline` | a sphere sliding down a 20° incline, μ = 0.3 | 1 contact, sliding then rolling |
+//! | `four-bar` | a four-bar linkage under gravity, closed by a hinge loop joint | 5 bilateral rows, 3 of them redundant |
+//! | `limit-pendulum` | a hinge pendulum falling onto its upper limit (bounce 0.3) | 1 unilateral row |
+
+use crate::algorithms::{aba, compute_joint_jacobians, crba, factor_mass_matrix};
+use crate::collision::{CollisionOptions, CollisionWorld, Contact, MeshOptions};
+use crate::constraints::{
+    add_contact_rows, add_joint_limit_rows, add_loop_closure_rows, assemble_single, ConstraintProblem,
+    ContactParameters, FrictionModel, JointLimitParameters, LoopClosure, LoopKind, ProblemBuilder,
+};
+use crate::data::Data;
+use crate::error::{CollisionError, DynamicsError, ModelError};
+use crate::math::{axis_angle, Mat3, Transform, Vec3};
+use crate::model::{BodySpec, Joint, JointLimits, Model, ModelBuilder, RigidInertia, Shape};
+use crate::solvers::{ClarabelSolver, ConstraintSolver, SolverError};
+use nalgebra::{DVector, UnitQuaternion};
+use thiserror::Error;
+
+/// Names of the built-in scenes.
+pub const SCENE_NAMES: [&str; 7] =
+    ["box-drop", "box-flat", "stack2", "stack10", "sphere-incline", "four-bar", "limit-pendulum"];
+
+/// Why a scene could not be built or stepped.
+#[derive(Debug, Error)]
+pub enum SceneError {
+    /// No built-in scene has this name.
+    #[error("unknown scene `{0}` (known: box-drop, box-flat, stack2, stack10, sphere-incline, four-bar, limit-pendulum)")]
+    Unknown(String),
+    /// The scene's model is invalid (a bug in the scene).
+    #[error("scene model: {0}")]
+    Model(#[from] ModelError),
+    /// The scene's collision geometry is invalid (a bug in the scene).
+    #[error("scene collision: {0}")]
+    Collision(#[from] CollisionError),
+    /// The dynamics failed at a step.
+    #[error("step {step}: {source}")]
+    Dynamics {
+        /// Step index.
+        step: usize,
+        /// The error.
+        source: DynamicsError,
+    },
+    /// clarabel found no impulses at a step.
+    #[error("step {step}: {source}")]
+    Solver {
+        /// Step index.
+        step: usize,
+        /// The error.
+        source: SolverError,
+    },
+}
+
+/// A built-in scene: one multibody, its collision world, its constraints and its state.
+pub struct Scene {
+    /// Scene name (one of [`SCENE_NAMES`]).
+    pub name: String,
+    /// The multibody.
+    pub model: Model,
+    /// Its buffers.
+    pub data: Data,
+    /// Configuration.
+    pub q: DVector<f64>,
+    /// Velocity.
+    pub v: DVector<f64>,
+    /// Time step (s).
+    pub h: f64,
+    /// Index of the next step (0 before the first).
+    pub step: usize,
+    /// Contact parameters of every contact.
+    pub contact: ContactParameters,
+    /// Joint-limit parameters.
+    pub limits: JointLimitParameters,
+    /// Loop closures.
+    pub loops: Vec<LoopClosure>,
+    /// Friction model of the contact rows.
+    pub friction: FrictionModel,
+    collision: CollisionWorld,
+    multibody: usize,
+    builder: ProblemBuilder,
+    contacts: Vec<Contact>,
+    v_free: DVector<f64>,
+}
+
+fn boxed(name: &str, mass: f64, size: Vec3) -> BodySpec {
+    BodySpec::new(name, "universe", Joint::Free, Transform::identity(), RigidInertia::solid_box(mass, size))
+        .with_collision(Shape::Box { size }, Transform::identity())
+}
+
+/// A rod of `length` m and 1 kg along the body's x axis, hinged about y at the body origin.
+fn rod(name: &str, parent: &str, placement: Transform, length: f64) -> BodySpec {
+    let i = length * length / 12.0;
+    let inertia = RigidInertia::new(
+        1.0,
+        Vec3::new(length / 2.0, 0.0, 0.0),
+        Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
+    );
+    BodySpec::new(name, parent, Joint::hinge(Vec3::y()), placement, inertia)
+}
+
+/// Writes the pose of free body `k` (position, rotation) and its world velocity (linear, angular)
+/// into q and v (the free joint's velocity is in body axes).
+fn set_free(
+    q: &mut DVector<f64>,
+    v: &mut DVector<f64>,
+    k: usize,
+    pose: (Vec3, Mat3),
+    velocity: (Vec3, Vec3),
+) {
+    let (p, r) = pose;
+    let quat = UnitQuaternion::from_matrix(&r);
+    q.rows_mut(7 * k, 3).copy_from(&p);
+    q.rows_mut(7 * k + 3, 4).copy_from_slice(&[quat.i, quat.j, quat.k, quat.w]);
+    v.rows_mut(6 * k, 3).copy_from(&(r.transpose() * velocity.0));
+    v.rows_mut(6 * k + 3, 3).copy_from(&(r.transpose() * velocity.1));
+}
+
+impl Scene {
+    /// The built-in scene `name` at its initial state.
+    pub fn new(name: &str) -> Result<Self, SceneError> {
+        let mut builder = ModelBuilder::new();
+        builder.name(name);
+        let mut ground = Some(Vec3::z());
+        let mut contact = ContactParameters::default();
+        let mut limits = JointLimitParameters::default();
+        let mut loops = Vec::new();
+        let (mut h, mut poses, mut velocities) = (0.005, Vec::new(), Vec::new());
+        let mut hinge_q: Vec<f64> = Vec::new();
+        let identity = Mat3::identity();
+        match name {
+            "box-drop" => {
+                builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
+                let r = axis_angle(&Vec3::new(1.0, 0.5, 0.0).normalize(), 0.5);
+                poses.push((Vec3::new(0.0, 0.0, 0.3), r));
+                velocities.push((Vec3::new(1.0, 0.2, -1.0), Vec3::new(0.0, 0.0, 2.0)));
+                contact.restitution = 0.2;
+            }
+            "box-flat" => {
+                builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
+                poses.push((Vec3::new(0.0, 0.0, 0.0995), identity));
+                velocities.push((Vec3::new(0.5, 0.2, 0.0), Vec3::zeros()));
+                contact.mu = 0.0;
+            }
+            "stack2" | "stack10" => {
+                let count = if name == "stack2" { 2 } else { 10 };
+                let size = Vec3::new(0.3, 0.3, 0.1);
+                for k in 0..count {
+                    builder.add_body(boxed(&format!("box{k}"), 1.0, size));
+                    let r = axis_angle(&Vec3::z(), 0.1 * k as f64);
+                    let offset = Vec3::new(0.01 * (k % 3) as f64, -0.01 * (k % 2) as f64, 0.0);
+                    poses.push((offset + Vec3::z() * (0.05 + 0.1 * k as f64 - 0.0005 * (k + 1) as f64), r));
+                    velocities.push((Vec3::zeros(), Vec3::zeros()));
+                }
+                contact.mu = 0.6;
+            }
+            "sphere-incline" => {
+                let radius = 0.1;
+                builder.add_body(
+                    BodySpec::new(
+                        "ball",
+                        "universe",
+                        Joint::Free,
+                        Transform::identity(),
+                        RigidInertia::solid_sphere(1.0, radius),
+                    )
+                    .with_collision(Shape::Sphere { radius }, Transform::identity()),
+                );
+                let slope = 20f64.to_radians();
+                let normal = Vec3::new(slope.sin(), 0.0, slope.cos());
+                ground = Some(normal);
+                let down = Vec3::new(-slope.cos(), 0.0, slope.sin());
+                poses.push((normal * (radius - 0.0005), identity));
+                velocities.push((down * 0.5, Vec3::zeros()));
+                contact.mu = 0.3;
+            }
+            "four-bar" => {
+                // Crank a (hinged at the origin), coupler b, rocker c (hinged at (d, 0, 0)); all
+                // rotate about y, so in the x-z plane a body turned by φ points along
+                // (cos φ, −sin φ). The coupler's tip is joined to the rocker's by a hinge.
+                let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
+                builder.add_body(rod("crank", "universe", Transform::identity(), a));
+                builder.add_body(rod(
+                    "coupler",
+                    "crank",
+                    Transform::from_translation(Vec3::new(a, 0.0, 0.0)),
+                    b,
+                ));
+                builder.add_body(rod(
+                    "rocker",
+                    "universe",
+                    Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
+                    c,
+                ));
+                // Closed configuration for crank angle φ₁ (2-D coordinates (x, −z)).
+                let phi1: f64 = 1.0;
+                let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
+                let o2 = nalgebra::Vector2::new(d, 0.0);
+                let dist = (o2 - p).norm();
+                let u = (o2 - p) / dist;
+                let l = (b * b - c * c + dist * dist) / (2.0 * dist);
+                let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
+                let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
+                let phi3 = (tip.y - o2.y).atan2(tip.x - o2.x);
+                hinge_q = vec![phi1, phi2 - phi1, phi3];
+                loops.push(LoopClosure {
+                    body_a: 2,
+                    frame_a: Transform::from_translation(Vec3::new(b, 0.0, 0.0)),
+                    body_b: 3,
+                    frame_b: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
+                    kind: LoopKind::Hinge { axis: Vec3::y() },
+                    erp: 0.2,
+                });
+                ground = None;
+                h = 0.01;
+            }
+            "limit-pendulum" => {
+                let limits_spec =
+                    JointLimits { lower: vec![-0.5], upper: vec![0.3], velocity: vec![], effort: vec![] };
+                builder.add_body(rod("arm", "universe", Transform::identity(), 1.0).with_limits(limits_spec));
+                hinge_q = vec![0.0];
+                limits.restitution = 0.3;
+                ground = None;
+                h = 0.01;
+            }
+            other => return Err(SceneError::Unknown(other.to_string())),
+        }
+        let model = builder.build()?;
+        let data = Data::new(&model);
+        let mut q = model.neutral_configuration();
+        let mut v = DVector::zeros(model.nv());
+        for (k, (pose, velocity)) in poses.into_iter().zip(velocities).enumerate() {
+            set_free(&mut q, &mut v, k, pose, velocity);
+        }
+        for (k, x) in hinge_q.into_iter().enumerate() {
+            q[k] = x;
+        }
+        let mut collision = CollisionWorld::new(CollisionOptions::default());
+        let multibody = collision.add_model(&model, &MeshOptions::default())?;
+        collision.set_self_collision(multibody, true)?;
+        if let Some(normal) = ground {
+            collision.add_static(
+                "ground",
+                &Shape::HalfSpace { normal },
+                Transform::identity(),
+                &MeshOptions::default(),
+            )?;
+        }
+        let builder = ProblemBuilder::new(model.nv(), FrictionModel::Cone);
+        Ok(Self {
+            name: name.to_string(),
+            v_free: DVector::zeros(model.nv()),
+            model,
+            data,
+            q,
+            v,
+            h,
+            step: 0,
+            contact,
+            limits,
+            loops,
+            friction: FrictionModel::Cone,
+            collision,
+            multibody,
+            builder,
+            contacts: Vec::new(),
+        })
+    }
+
+    /// The contacts found by the last [`Scene::problem`].
+    pub fn contacts(&self) -> &[Contact] {
+        &self.contacts
+    }
+
+    /// Builds the constraint problem of the current step into `problem`: kinematics, collision
+    /// detection, the free velocity, the rows and the Delassus matrix.
+    pub fn problem(&mut self, problem: &mut ConstraintProblem) -> Result<(), SceneError> {
+        let (model, data, step) = (&self.model, &mut self.data, self.step);
+        let dynamics = |source| SceneError::Dynamics { step, source };
+        compute_joint_jacobians(model, data, &self.q).map_err(dynamics)?;
+        self.collision.update_multibody(self.multibody, data)?;
+        self.contacts.clear();
+        self.contacts.extend_from_slice(self.collision.detect());
+        let tau = DVector::zeros(model.nv());
+        let ddq = aba(model, data, &self.q, &self.v, &tau).map_err(dynamics)?;
+        self.v_free = &self.v + ddq * self.h;
+        crba(model, data, &self.q).map_err(dynamics)?;
+        factor_mass_matrix(model, data).map_err(dynamics)?;
+        self.builder.clear();
+        self.builder.friction = self.friction;
+        let contact = self.contact;
+        add_contact_rows(
+            &mut self.builder,
+            &[(model, data)],
+            &[0],
+            &self.contacts,
+            0,
+            &self.v,
+            self.h,
+            |_| contact,
+        );
+        add_joint_limit_rows(&mut self.builder, model, &self.q, &self.v, 0, self.h, &self.limits);
+        for (k, c) in self.loops.iter().enumerate() {
+            add_loop_closure_rows(&mut self.builder, model, data, 0, c, k, self.h);
+        }
+        assemble_single(&self.builder, model, data, &self.v_free, problem);
+        Ok(())
+    }
+
+    /// Ends the step with impulses `lambda` for the `problem` of [`Scene::problem`]:
+    /// `v = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v`.
+    pub fn advance(&mut self, problem: &ConstraintProblem, lambda: &DVector<f64>) {
+        self.v.copy_from(&self.v_free);
+        if problem.rows() > 0 {
+            self.v.gemv(1.0, &problem.minv_jt, lambda, 1.0);
+        }
+        let q = self.q.clone();
+        self.model.integrate(&q, &self.v, self.h, &mut self.q);
+        self.model.normalize(&mut self.q);
+        self.step += 1;
+    }
+
+    /// One whole step with clarabel's impulses; `problem` and `lambda` hold the step's problem
+    /// and impulses afterwards.
+    pub fn step(
+        &mut self,
+        problem: &mut ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<(), SceneError> {
+        self.problem(problem)?;
+        ClarabelSolver::default()
+            .solve(problem, lambda)
+            .map_err(|source| SceneError::Solver { step: self.step, source })?;
+        self.advance(problem, lambda);
+        Ok(())
+    }
+}

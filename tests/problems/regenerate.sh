@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Regenerates the committed corpus of constraint problems (tests/problem_corpus.rs re-solves it):
+# each entry steps a built-in scene with `gelenk export-problems` and keeps one step's directory
+# (problem.json, cone.json, lcp.npz, qp.npz for QPs, meta.json) as tests/problems/NAME.
+# Run after a deliberate change of a solver, the residuals, the scenes or the file formats, and
+# review the meta.json differences (statuses, residuals, w) before committing them.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+cargo build --release --quiet
+bin=target/release/gelenk
+corpus=tests/problems
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+# add NAME SCENE FRICTION STEP
+add() {
+    local name=$1 scene=$2 friction=$3 step=$4
+    "$bin" export-problems "$scene" --steps $((step + 1)) --only "$step" --friction "$friction" \
+        --out "$tmp/$name" >/dev/null
+    rm -rf "${corpus:?}/$name"
+    mv "$tmp/$name/step-$(printf %04d "$step")" "$corpus/$name"
+    echo "$name"
+}
+
+# Frictionless: pure QPs (box bounds and equalities only).
+add box-flat-0000 box-flat cone 0                 # 4 coplanar contacts: A is singular
+add box-flat-0040 box-flat cone 40
+add four-bar-0000 four-bar cone 0                 # hinge loop closure: 3 of 5 rows are zero
+add four-bar-0050 four-bar cone 50
+add limit-pendulum-0020 limit-pendulum cone 20    # impact on the limit, with restitution
+add limit-pendulum-0059 limit-pendulum cone 59    # resting on the limit
+# Friction cone: second-order cone programs.
+add box-drop-cone-0015 box-drop cone 15           # first impact on a corner, sliding
+add box-drop-cone-0045 box-drop cone 45           # two contacts, one separating
+add box-drop-cone-0064 box-drop cone 64           # four contacts, sliding
+add box-drop-cone-0100 box-drop cone 100          # resting flat: 4 coplanar contacts with friction
+add sphere-incline-cone-0000 sphere-incline cone 0  # launched without spin: friction spins it up
+add sphere-incline-cone-0030 sphere-incline cone 30 # rolling (sticking contact)
+add stack2-cone-0000 stack2 cone 0
+add stack2-cone-0001 stack2 cone 1                # resting stack: Lemke ends on a ray
+# Friction pyramid: QPs with facet inequalities.
+add box-drop-pyramid4-0015 box-drop pyramid:4 15
+add box-drop-pyramid4-0072 box-drop pyramid:4 72  # resting flat
+add box-drop-pyramid8-0066 box-drop pyramid:8 66
+add sphere-incline-pyramid4-0008 sphere-incline pyramid:4 8
+add stack2-pyramid4-0004 stack2 pyramid:4 4       # Lemke ends on a ray
+add stack2-pyramid8-0008 stack2 pyramid:8 8
+add stack10-pyramid4-0000 stack10 pyramid:4 0     # the large one: 120 rows, 40 contacts
