@@ -10,11 +10,11 @@ use parry3d_f64::query::details::{
     contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
     contact_manifold_pfm_pfm_shapes,
 };
-use parry3d_f64::query::TrackedContact;
 use parry3d_f64::query::{
     ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
     Unsupported,
 };
+use parry3d_f64::query::TrackedContact;
 use parry3d_f64::shape::{HalfSpace, PackedFeatureId, PolygonalFeature, Shape as ParryShape};
 use std::collections::HashMap;
 
@@ -89,7 +89,12 @@ pub(crate) fn dispatch(
             (Sphere, _) | (_, Sphere) => {
                 contact_manifold_convex_ball_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m)
             }
-            _ => contact_manifold_pfm_pfm_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m),
+            _ => {
+                contact_manifold_pfm_pfm_shapes(pos_ab, shape_a, shape_b, None, None, prediction, m);
+                if kind_a == ConvexHull || kind_b == ConvexHull {
+                    add_hull_vertices(pos_ab, shape_a, shape_b, prediction, m);
+                }
+            }
         }
         Ok(())
     } else {
@@ -135,6 +140,12 @@ fn convex_against_half_space(
     };
     if let Some(ball) = shape_a.as_ball() {
         emit(parry3d_f64::math::Vector::ZERO, ball.radius, PackedFeatureId::face(0));
+    } else if let Some(hull) = shape_a.as_convex_polyhedron() {
+        // Parry's support feature of a hull stops at 4 vertices of a face; every vertex within
+        // the margin is a candidate, and the reduction keeps the 4 that span the most area.
+        for (i, p) in hull.points().iter().enumerate() {
+            emit(*p, 0.0, PackedFeatureId::vertex(i as u32));
+        }
     } else {
         let (features, border) = shape_a.as_polygonal_feature_map().ok_or(Unsupported)?;
         let mut feature = PolygonalFeature::default();
@@ -148,4 +159,61 @@ fn convex_against_half_space(
     m.subshape1 = 0;
     m.subshape2 = 0;
     Ok(())
+}
+
+/// Parry's polygonal features stop at 4 vertices of a face, so a hull resting on a face with
+/// more vertices would be held on one side only. Every hull vertex within the margin of the
+/// contact plane (through the manifold's first point, along its normal) whose foot on that
+/// plane lies on the other shape's surface is added; the reduction then keeps the 4 that span
+/// the most area.
+fn add_hull_vertices(
+    pos_ab: &Pose,
+    shape_a: &dyn ParryShape,
+    shape_b: &dyn ParryShape,
+    prediction: Real,
+    m: &mut Manifold,
+) {
+    let Some(first) = m.points.first().copied() else { return };
+    let pos_ba = pos_ab.inverse();
+    let on_surface = |foot: parry3d_f64::math::Vector, shape: &dyn ParryShape| {
+        let proj = shape.project_local_point(foot, false);
+        ((proj.point - foot).length() <= 1e-9 * (1.0 + foot.length())).then_some(proj.point)
+    };
+    if let Some(hull) = shape_a.as_convex_polyhedron() {
+        // Plane of B's surface in A's frame; n1 points from A to B.
+        let (plane, n1) = (*pos_ab * first.local_p2, m.local_n1);
+        for (i, v) in hull.points().iter().enumerate() {
+            let distance = (plane - *v).dot(n1);
+            let known = m.points.iter().any(|c| (c.local_p1 - *v).length() <= 1e-9);
+            if distance <= prediction && !known {
+                if let Some(on_b) = on_surface(pos_ba * (*v + n1 * distance), shape_b) {
+                    m.points.push(TrackedContact::new(
+                        *v,
+                        on_b,
+                        PackedFeatureId::vertex(i as u32),
+                        PackedFeatureId::face(0),
+                        distance,
+                    ));
+                }
+            }
+        }
+    }
+    if let Some(hull) = shape_b.as_convex_polyhedron() {
+        let (plane, n2) = (pos_ba * first.local_p1, m.local_n2);
+        for (i, v) in hull.points().iter().enumerate() {
+            let distance = (plane - *v).dot(n2);
+            let known = m.points.iter().any(|c| (c.local_p2 - *v).length() <= 1e-9);
+            if distance <= prediction && !known {
+                if let Some(on_a) = on_surface(*pos_ab * (*v + n2 * distance), shape_a) {
+                    m.points.push(TrackedContact::new(
+                        on_a,
+                        *v,
+                        PackedFeatureId::face(0),
+                        PackedFeatureId::vertex(i as u32),
+                        distance,
+                    ));
+                }
+            }
+        }
+    }
 }

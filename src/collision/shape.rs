@@ -8,7 +8,7 @@ use crate::error::CollisionError;
 use crate::math::{axis_angle, Transform, Vec3};
 use crate::model::Shape;
 use parry3d_f64::math::Vector;
-use parry3d_f64::shape::SharedShape;
+use parry3d_f64::shape::{HeightFieldFlags, SharedShape, TriMeshFlags};
 use parry3d_f64::utils::Array2;
 use std::path::Path;
 
@@ -127,7 +127,11 @@ pub(crate) fn build(
             }
             let field = Array2::new(ny, nx, data);
             Ok(ParryShape {
-                shape: SharedShape::heightfield(field, Vector::new(sx, 1.0, sy)),
+                shape: SharedShape::heightfield_with_flags(
+                    field,
+                    Vector::new(sx, 1.0, sy),
+                    HeightFieldFlags::FIX_INTERNAL_EDGES,
+                ),
                 kind: ShapeKind::HeightField,
                 offset: Some(y_up_to_z_up()),
             })
@@ -184,8 +188,12 @@ fn trimesh(vertices: &[Vec3], triangles: &[[u32; 3]], link: &str) -> Result<Parr
     if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= vertices.len())) {
         return Err(invalid(format!("triangle {t:?} refers to a vertex beyond the {}", vertices.len())));
     }
-    let shape = SharedShape::trimesh(vertices.iter().map(to_vector).collect(), triangles.to_vec())
-        .map_err(|e| invalid(format!("triangle mesh rejected: {e}")))?;
+    let shape = SharedShape::trimesh_with_flags(
+        vertices.iter().map(to_vector).collect(),
+        triangles.to_vec(),
+        TriMeshFlags::FIX_INTERNAL_EDGES,
+    )
+    .map_err(|e| invalid(format!("triangle mesh rejected: {e}")))?;
     Ok(ParryShape { shape, kind: ShapeKind::TriMesh, offset: None })
 }
 

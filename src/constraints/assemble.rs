@@ -204,11 +204,11 @@ impl ProblemBuilder {
         // A = J (M⁻¹Jᵀ): per block, over the pairs of rows touching it (other blocks give zero).
         problem.delassus.fill(0.0);
         let sp = &problem.sparsity;
-        for b in 0..blocks.len() {
+        for (b, &(_, width)) in blocks.iter().enumerate() {
             let rows = &sp.rows_of_block[sp.block_start[b]..sp.block_start[b + 1]];
-            let width = blocks[b].1;
             let segment = |i: usize| -> std::ops::Range<usize> {
-                let e = (sp.row_start[i]..sp.row_start[i + 1]).find(|&e| sp.blocks_of_row[e] == b).unwrap_or(0);
+                let e =
+                    (sp.row_start[i]..sp.row_start[i + 1]).find(|&e| sp.blocks_of_row[e] == b).unwrap_or(0);
                 sp.segment_start[e]..sp.segment_start[e] + width
             };
             for (p, &i) in rows.iter().enumerate() {
@@ -228,7 +228,11 @@ impl ProblemBuilder {
             let mut b = 0.0;
             for &blk in problem.sparsity.row_blocks(i) {
                 let (col, width) = blocks[blk];
-                b += row[col..col + width].iter().zip(&v_free.as_slice()[col..col + width]).map(|(p, q)| p * q).sum::<f64>();
+                b += row[col..col + width]
+                    .iter()
+                    .zip(&v_free.as_slice()[col..col + width])
+                    .map(|(p, q)| p * q)
+                    .sum::<f64>();
             }
             problem.bias[i] = b - self.targets[i];
             problem.target[i] = self.targets[i];

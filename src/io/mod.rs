@@ -2,4 +2,5 @@
 
 pub mod mjcf;
 pub mod problem;
+pub mod scene;
 pub mod urdf;

@@ -32,7 +32,13 @@ pub struct PgsWorkspace {
 
 impl Default for PgsSolver {
     fn default() -> Self {
-        Self { iterations: 50, tolerance: 1e-9, omega: 1.0, warm_start: true, workspace: PgsWorkspace::default() }
+        Self {
+            iterations: 50,
+            tolerance: 1e-9,
+            omega: 1.0,
+            warm_start: true,
+            workspace: PgsWorkspace::default(),
+        }
     }
 }
 

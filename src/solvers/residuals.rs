@@ -58,6 +58,7 @@ impl Residuals {
     /// The residual that certifies the convex relaxation (clarabel).
     pub fn convex(&self) -> f64 {
         self.conic_kkt
+            .max(self.signorini_limits)
             .max(self.bilateral)
             .max(self.bounded)
             .max(self.friction_feasibility)

@@ -31,9 +31,7 @@ impl SolverKind {
         match *self {
             SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
             SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
-            SolverKind::Pgs { iterations, omega } => {
-                Box::new(PgsSolver::new(iterations, 1e-10, omega, true))
-            }
+            SolverKind::Pgs { iterations, omega } => Box::new(PgsSolver::new(iterations, 1e-10, omega, true)),
         }
     }
 
