@@ -10,11 +10,11 @@ use parry3d_f64::query::details::{
     contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
     contact_manifold_pfm_pfm_shapes,
 };
+use parry3d_f64::query::TrackedContact;
 use parry3d_f64::query::{
     ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
     Unsupported,
 };
-use parry3d_f64::query::TrackedContact;
 use parry3d_f64::shape::{HalfSpace, PackedFeatureId, PolygonalFeature, Shape as ParryShape};
 use std::collections::HashMap;
 
