@@ -73,6 +73,26 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Run a scene file (models/*.toml) and print a summary; optionally record the states.
+    Simulate {
+        /// Scene file.
+        scene: PathBuf,
+        /// Simulated time (s) instead of the scene's.
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Time step (s) instead of the scene's.
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Solver chain instead of the scene's, e.g. `pgs50`, `lemke,clarabel`.
+        #[arg(long)]
+        solver: Option<String>,
+        /// Write the recorded states to FILE.csv or FILE.json.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
     /// Time algorithms in-process (median over rounds, after warm-up).
     Bench {
         #[command(subcommand)]
@@ -107,6 +127,9 @@ fn main() -> ExitCode {
             export_problems(&scene, steps, &out, &friction, &only)
         }
         Command::SolveProblem { file, solver, json } => solve_problem(&file, &solver, json),
+        Command::Simulate { scene, duration, dt, solver, out, json } => {
+            simulate(&scene, duration, dt, solver.as_deref(), out.as_deref(), json)
+        }
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
         }
@@ -209,6 +232,86 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
         eprintln!(
             "gelenk: warning: joint `{}` moves a subtree without mass or inertia: the mass matrix is singular and forward dynamics will refuse it",
             model.joint_name(i)
+        );
+    }
+    Ok(())
+}
+
+fn simulate(
+    path: &Path,
+    duration: Option<f64>,
+    dt: Option<f64>,
+    solver: Option<&str>,
+    out: Option<&Path>,
+    as_json: bool,
+) -> Result<(), String> {
+    use gelenk::io::scene;
+    use std::io::{IsTerminal, Write};
+    let mut loaded = scene::load_file(path).map_err(|e| e.to_string())?;
+    let solvers = solver.map(scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
+    let options =
+        scene::RunOptions { duration, dt, solvers, record_every: if out.is_some() { None } else { Some(0) } };
+    let terminal = std::io::stderr().is_terminal();
+    let mut shown = -1i64;
+    let summary = scene::run(&mut loaded, &options, |fraction| {
+        let percent = (fraction * 100.0).floor() as i64;
+        if terminal && percent != shown {
+            shown = percent;
+            let filled = (percent / 2) as usize;
+            eprint!("\r[{}{}] {percent:3}%", "#".repeat(filled), " ".repeat(50 - filled.min(50)));
+            let _ = std::io::stderr().flush();
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    if terminal {
+        eprintln!();
+    }
+    for warning in &loaded.warnings {
+        eprintln!("gelenk: warning: {warning}");
+    }
+    if let Some(out) = out {
+        summary.recording.save(out).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+    }
+    if as_json {
+        let value = json!({
+            "scene": summary.scene, "steps": summary.steps, "dt": summary.dt,
+            "simulated_time": summary.simulated_time, "wall_time": summary.wall_time,
+            "steps_per_second": summary.steps_per_second, "real_time_factor": summary.real_time_factor,
+            "energy_start": summary.energy_start, "energy_end": summary.energy_end,
+            "energy_drift": summary.energy_drift, "max_penetration": summary.max_penetration,
+            "max_contacts": summary.max_contacts, "max_rows": summary.max_rows,
+            "solver_usage": summary.solver_usage, "fallbacks": summary.fallbacks,
+            "max_residual": summary.max_residual, "mean_iterations": summary.mean_iterations,
+        });
+        println!("{}", serde_json::to_string_pretty(&value).map_err(|e| e.to_string())?);
+    } else {
+        println!(
+            "{}: {} steps of {} s ({} s simulated) in {:.3} s: {:.0} steps/s, {:.1}× real time",
+            summary.scene,
+            summary.steps,
+            summary.dt,
+            summary.simulated_time,
+            summary.wall_time,
+            summary.steps_per_second,
+            summary.real_time_factor
+        );
+        println!(
+            "energy {:.6} J -> {:.6} J (drift {:+.3e}); max penetration {:.2e} m; up to {} contacts, {} rows",
+            summary.energy_start,
+            summary.energy_end,
+            summary.energy_drift,
+            summary.max_penetration,
+            summary.max_contacts,
+            summary.max_rows
+        );
+        let usage: Vec<String> = summary.solver_usage.iter().map(|(k, v)| format!("{k} {v}")).collect();
+        println!(
+            "solver: {} steps with rows ({}); {} fallbacks; max residual {:.2e} m/s; mean iterations {:.1}",
+            summary.solved_steps,
+            usage.join(", "),
+            summary.fallbacks,
+            summary.max_residual,
+            summary.mean_iterations
         );
     }
     Ok(())
