@@ -1,7 +1,9 @@
 //! Whole-step benchmarks of the scenes of ../shared/peers rebuilt in gelenk, at dt = 2 ms:
 //! box_stack10.xml (ten 0.1 m cubes of density 500 resting in a stack on a plane) with each
-//! solver chain. The stack is let settle for 0.5 s first; sleeping is off so that every step
-//! does the full work.
+//! solver chain, let settle for 0.5 s first; and humanoid_fall.xml (loaded by gelenk's MJCF
+//! reader: a capsule humanoid, free base + 21 hinges, joint damping 1) dropped on the plane for
+//! a 5 s episode, timed per step over the whole episode as MuJoCo's figure is. Sleeping is off
+//! so that every step does the full work.
 //!
 //! Run: `cargo bench --bench world`.
 
@@ -42,9 +44,24 @@ fn box_stack(solvers: Vec<SolverKind>) -> World {
     w
 }
 
+fn humanoid(solvers: Vec<SolverKind>) -> World {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/peers/humanoid_fall.xml");
+    let scene = gelenk::io::mjcf::load_file(path).expect("humanoid_fall.xml loads");
+    let mut options = WorldOptions { dt: scene.timestep, solvers, ..Default::default() };
+    options.sleep.enabled = false;
+    options.contact = ContactParameters { mu: 0.7, ..Default::default() };
+    let mut w = World::new(options);
+    for s in scene.statics.iter().filter(|s| s.collides) {
+        w.add_static(&s.name, &s.shape, s.pose, 0).unwrap();
+    }
+    let i = w.add_multibody("humanoid", scene.model, &MeshOptions::default()).unwrap();
+    w.multibody_mut(i).state.q.copy_from(&scene.q0);
+    w
+}
+
 fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("world_step");
-    group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
+    group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3)).sample_size(10);
     let chains: [(&str, Vec<SolverKind>); 3] = [
         ("pgs50", vec![SolverKind::Pgs { iterations: 50, omega: 1.0 }]),
         ("pgs100+clarabel", WorldOptions::default().solvers),
@@ -58,6 +75,36 @@ fn bench(c: &mut Criterion) {
             s.contacts, s.rows, s.solver, s.iterations, s.residual, s.phase_ns
         );
         group.bench_function(BenchmarkId::new("box_stack10", name), |b| b.iter(|| w.step().unwrap().rows));
+    }
+    for (name, solvers) in [
+        ("pgs50", vec![SolverKind::Pgs { iterations: 50, omega: 1.0 }]),
+        ("pgs100+clarabel", WorldOptions::default().solvers),
+    ] {
+        group.bench_function(BenchmarkId::new("humanoid_fall_5s_per_step", name), |b| {
+            b.iter_custom(|episodes| {
+                let mut total = Duration::ZERO;
+                for _ in 0..episodes {
+                    let mut w = humanoid(solvers.clone());
+                    let start = std::time::Instant::now();
+                    for _ in 0..2500 {
+                        w.step().unwrap();
+                    }
+                    total += start.elapsed() / 2500;
+                }
+                total
+            })
+        });
+        let mut w = humanoid(solvers.clone());
+        let (mut contacts, mut fallbacks) = (0, 0);
+        for _ in 0..2500 {
+            let s = w.step().unwrap();
+            contacts += s.contacts;
+            fallbacks += s.fallbacks.len();
+        }
+        eprintln!(
+            "humanoid [{name}]: mean contacts {:.1}, fallbacks {fallbacks} in 2500 steps",
+            contacts as f64 / 2500.0
+        );
     }
     group.finish();
 }
