@@ -112,24 +112,30 @@ impl ProblemBuilder {
         problem: &mut ConstraintProblem,
     ) {
         let blocks = [(0, self.nv)];
-        self.build_into_blocks(v_free, &blocks, |_, x| minv(x), problem);
+        self.build_into_blocks(v_free, &blocks, |_, x| minv(x), true, problem);
     }
 
     /// Builds the problem into `problem` for a block-diagonal M: `blocks[b]` = (first column,
     /// width) of block b (a multibody), and `minv(b, x)` applies block b's M⁻¹ in place to its
     /// slice `x`. Rows touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block,
-    /// and the block structure is kept in [`ConstraintProblem::sparsity`].
+    /// and the block structure is kept in [`ConstraintProblem::sparsity`]. With `dense` false,
+    /// the dense `jacobian` and `minv_jt` are left empty (the sparse segments hold them; use
+    /// [`ConstraintProblem::apply_impulses`]) — the stepping path, which never needs them.
     pub fn build_into_blocks(
         &self,
         v_free: &DVector<f64>,
         blocks: &[(usize, usize)],
         mut minv: impl FnMut(usize, &mut [f64]),
+        dense: bool,
         problem: &mut ConstraintProblem,
     ) {
         let (n, nv) = (self.len(), self.nv);
-        if problem.jacobian.shape() != (n, nv) {
-            problem.jacobian = DMatrix::zeros(n, nv);
-            problem.minv_jt = DMatrix::zeros(nv, n);
+        let (jn, jv) = if dense { (n, nv) } else { (n, 0) };
+        if problem.jacobian.shape() != (jn, jv) {
+            problem.jacobian = DMatrix::zeros(jn, jv);
+            problem.minv_jt = DMatrix::zeros(jv, jn);
+        }
+        if problem.delassus.shape() != (n, n) {
             problem.delassus = DMatrix::zeros(n, n);
             problem.regularization = DVector::zeros(n);
             problem.bias = DVector::zeros(n);
@@ -137,6 +143,7 @@ impl ProblemBuilder {
         }
         // Which blocks each row touches, with the row's J and M⁻¹Jᵀ entries on each.
         let sp = &mut problem.sparsity;
+        sp.nv = nv;
         sp.blocks.clear();
         sp.blocks.extend_from_slice(blocks);
         sp.row_start.clear();
@@ -171,11 +178,14 @@ impl ProblemBuilder {
         }
         sp.rows_of_block.clear();
         sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
+        sp.segment_of_block_row.clear();
+        sp.segment_of_block_row.resize(sp.blocks_of_row.len(), 0);
         for i in 0..n {
             for e in sp.row_start[i]..sp.row_start[i + 1] {
                 let b = sp.blocks_of_row[e];
                 // block_start[b] is used as the fill cursor, then restored below.
                 sp.rows_of_block[sp.block_start[b]] = i;
+                sp.segment_of_block_row[sp.block_start[b]] = sp.segment_start[e];
                 sp.block_start[b] += 1;
             }
         }
@@ -183,15 +193,15 @@ impl ProblemBuilder {
             sp.block_start[b + 1] = sp.block_start[b];
         }
         sp.block_start[0] = 0;
-        // Dense J and M⁻¹Jᵀ (for the velocity update, export and dense solvers).
+        // Dense J and M⁻¹Jᵀ (for export and inspection), if asked.
         problem.minv_jt.fill(0.0);
-        for i in 0..n {
+        for i in (0..n).filter(|_| dense) {
             let row = self.row(i);
             for (k, &x) in row.iter().enumerate() {
                 problem.jacobian[(i, k)] = x;
             }
         }
-        for i in 0..n {
+        for i in (0..n).filter(|_| dense) {
             let sp = &problem.sparsity;
             for e in sp.row_start[i]..sp.row_start[i + 1] {
                 let (col, width) = sp.blocks[sp.blocks_of_row[e]];
@@ -205,16 +215,12 @@ impl ProblemBuilder {
         problem.delassus.fill(0.0);
         let sp = &problem.sparsity;
         for (b, &(_, width)) in blocks.iter().enumerate() {
-            let rows = &sp.rows_of_block[sp.block_start[b]..sp.block_start[b + 1]];
-            let segment = |i: usize| -> std::ops::Range<usize> {
-                let e =
-                    (sp.row_start[i]..sp.row_start[i + 1]).find(|&e| sp.blocks_of_row[e] == b).unwrap_or(0);
-                sp.segment_start[e]..sp.segment_start[e] + width
-            };
-            for (p, &i) in rows.iter().enumerate() {
-                let ji = &sp.j_values[segment(i)];
-                for &j in &rows[..=p] {
-                    let xj = &sp.x_values[segment(j)];
+            let range = sp.block_start[b]..sp.block_start[b + 1];
+            let (rows, segments) = (&sp.rows_of_block[range.clone()], &sp.segment_of_block_row[range]);
+            for (p, (&i, &si)) in rows.iter().zip(segments).enumerate() {
+                let ji = &sp.j_values[si..si + width];
+                for (&j, &sj) in rows[..=p].iter().zip(segments) {
+                    let xj = &sp.x_values[sj..sj + width];
                     let a: f64 = ji.iter().zip(xj).map(|(p, q)| p * q).sum();
                     problem.delassus[(i, j)] += a;
                     if i != j {

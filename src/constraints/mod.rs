@@ -130,6 +130,8 @@ pub struct ConstraintProblem {
 /// diagonal, so row i's column of M⁻¹Jᵀ is non-zero only on those blocks too.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RowSparsity {
+    /// Number of velocity coordinates (all blocks).
+    pub nv: usize,
     /// (first column, width) of each block.
     pub blocks: Vec<(usize, usize)>,
     /// Offsets into `blocks_of_row`, one per row plus one.
@@ -147,6 +149,8 @@ pub struct RowSparsity {
     pub rows_of_block: Vec<usize>,
     /// Offsets into `rows_of_block`, one per block plus one.
     pub block_start: Vec<usize>,
+    /// For each entry of `rows_of_block`, the offset of that row's segment on that block.
+    pub segment_of_block_row: Vec<usize>,
 }
 
 impl RowSparsity {
@@ -198,6 +202,25 @@ impl ConstraintProblem {
         w.gemv(1.0, &self.delassus, lambda, 1.0);
         for i in 0..w.len() {
             w[i] += self.regularization[i] * lambda[i];
+        }
+    }
+
+    /// Adds the velocity change of impulses λ, `M⁻¹Jᵀλ`, to `v` (length nv): from the sparse
+    /// segments when the problem has them, else from the dense `minv_jt`.
+    pub fn apply_impulses(&self, lambda: &DVector<f64>, v: &mut DVector<f64>) {
+        if self.sparsity.is_empty() {
+            v.gemv(1.0, &self.minv_jt, lambda, 1.0);
+            return;
+        }
+        let v = v.as_mut_slice();
+        for (i, &l) in lambda.iter().enumerate() {
+            if l != 0.0 {
+                for (col, _, x) in self.sparsity.row_segments(i) {
+                    for (vk, xk) in v[col..col + x.len()].iter_mut().zip(x) {
+                        *vk += l * xk;
+                    }
+                }
+            }
         }
     }
 

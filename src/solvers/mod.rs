@@ -96,13 +96,16 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
             problem.bias.len()
         ));
     }
-    if !problem
-        .delassus
-        .iter()
-        .chain(problem.bias.iter())
-        .chain(problem.regularization.iter())
-        .all(|x| x.is_finite())
-    {
+    // With the sparse segments at hand, A is finite if they are (A is made of their products),
+    // which is cheaper to check than n² entries.
+    let sp = &problem.sparsity;
+    let finite_a = if sp.is_empty() {
+        problem.delassus.iter().all(|x| x.is_finite())
+    } else {
+        sp.j_values.iter().chain(sp.x_values.iter()).all(|x| x.is_finite())
+            && (0..n).all(|i| problem.delassus[(i, i)].is_finite())
+    };
+    if !finite_a || !problem.bias.iter().chain(problem.regularization.iter()).all(|x| x.is_finite()) {
         return bad("A, b or R holds NaN or infinity".into());
     }
     for (k, c) in problem.contacts.iter().enumerate() {

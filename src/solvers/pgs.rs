@@ -74,11 +74,8 @@ impl ConstraintSolver for PgsSolver {
         // With the block structure, sweep in velocity space (ODE's QuickStep): keep
         // dv = M⁻¹Jᵀλ, so that w_i = J_i (v_free + dv) − u*_i + R_i λ_i costs a few entries;
         // otherwise use the dense row of A.
-        let sparse = !problem.sparsity.is_empty()
-            && problem.minv_jt.ncols() == n
-            && problem.jacobian.nrows() == n
-            && problem.minv_jt.nrows() == problem.jacobian.ncols();
-        let nv = problem.jacobian.ncols();
+        let sparse = !problem.sparsity.is_empty() && problem.sparsity.row_start.len() == n + 1;
+        let nv = problem.sparsity.nv;
         if sparse {
             if self.workspace.dv.len() != nv {
                 self.workspace.dv = DVector::zeros(nv);

@@ -461,6 +461,7 @@ impl World {
                         crate::algorithms::solve_mass_matrix_slice(&b.model, &b.data, slice);
                     }
                 },
+                false,
                 &mut self.problem,
             );
             lap(3, &mut clock);
@@ -476,7 +477,7 @@ impl World {
         lap(4, &mut clock);
         // 7. Velocity update and integration on the manifold; commit only if all is finite.
         if rows > 0 {
-            self.v_free_all.gemv(1.0, &self.problem.minv_jt, &self.lambda, 1.0);
+            self.problem.apply_impulses(&self.lambda, &mut self.v_free_all);
         }
         for i in 0..self.bodies.len() {
             let b = &mut self.bodies[i];
