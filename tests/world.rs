@@ -298,3 +298,36 @@ fn a_sleeping_stack_sleeps_and_wakes_when_hit() {
     }
     assert!((w.multibody(2).state.q.clone() - top).norm() > 1e-3, "the top box was hit and moved");
 }
+
+#[test]
+fn head_on_elastic_impact_conserves_momentum_and_energy() {
+    let mut options = exact_options();
+    options.gravity = Vec3::zeros();
+    options.diagnostics = true;
+    options.sleep.enabled = false;
+    options.contact =
+        ContactParameters { mu: 0.0, restitution: 1.0, bounce_velocity: 0.0, erp: 0.0, ..Default::default() };
+    let mut w = World::new(options);
+    let r = 0.1;
+    let sphere = |m: f64| lone_body("s", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(m, r));
+    let a = w.add_multibody("a", sphere(1.0), &MeshOptions::default()).unwrap();
+    let b = w.add_multibody("b", sphere(3.0), &MeshOptions::default()).unwrap();
+    w.multibody_mut(a).state.q[0] = -0.3;
+    w.multibody_mut(a).state.v[0] = 2.0;
+    w.multibody_mut(b).state.q[0] = 0.3;
+    w.multibody_mut(b).state.v[0] = -1.0;
+    let p0 = w.linear_momentum();
+    let e0 = w.total_energy();
+    let mut touched = false;
+    for _ in 0..400 {
+        let s = w.step().unwrap();
+        touched |= s.contacts > 0;
+        let p = s.momentum.unwrap();
+        assert!((p - p0).norm() < 1e-12, "momentum {p:?} vs {p0:?}");
+        assert!(s.energy.unwrap() <= e0 * (1.0 + 1e-12), "energy grew: {} > {e0}", s.energy.unwrap());
+    }
+    assert!(touched);
+    // Elastic 1-D impact: v_a' = ((m_a − m_b) v_a + 2 m_b v_b)/(m_a + m_b) = −2.5, v_b' = 0.5.
+    let (va, vb) = (w.multibody(a).state.v[0], w.multibody(b).state.v[0]);
+    assert!((va + 2.5).abs() < 1e-9 && (vb - 0.5).abs() < 1e-9, "after: {va}, {vb}");
+}

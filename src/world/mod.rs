@@ -93,6 +93,11 @@ pub struct StepStats {
     pub asleep: usize,
     /// Total energy (J) after the step, if diagnostics are on.
     pub energy: Option<f64>,
+    /// Total linear momentum (kg·m/s, world axes) after the step, if diagnostics are on.
+    pub momentum: Option<Vec3>,
+    /// Largest constraint violation after the step, if diagnostics are on: loop-closure
+    /// translation error (m) or joint-limit overshoot (rad or m), whichever is larger.
+    pub constraint_violation: Option<f64>,
     /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
     /// integration + sleeping.
     pub phase_ns: [u64; 6],
@@ -503,7 +508,11 @@ impl World {
         if self.options.sleep.enabled {
             sleep::update(self);
         }
-        let energy = if self.options.diagnostics { Some(self.total_energy()) } else { None };
+        let (energy, momentum, constraint_violation) = if self.options.diagnostics {
+            (Some(self.total_energy()), Some(self.linear_momentum()), Some(self.constraint_violation()))
+        } else {
+            (None, None, None)
+        };
         lap(5, &mut clock);
         let report = report.unwrap_or_else(|| crate::solvers::ChainReport {
             solver: "",
@@ -525,6 +534,8 @@ impl World {
             max_penetration: self.contacts.iter().map(|c| -c.distance).fold(0.0, f64::max),
             asleep: self.bodies.iter().filter(|b| b.asleep).count(),
             energy,
+            momentum,
+            constraint_violation,
             phase_ns: phase,
         };
         Ok(&self.stats)
@@ -539,6 +550,47 @@ impl World {
             total += crate::algorithms::potential_energy(&b.model, &mut b.data, q).unwrap_or(f64::NAN);
         }
         total
+    }
+
+    /// Total linear momentum Σ R_i (m_i v_i + ω_i × m_i c_i) of every body (kg·m/s, world axes)
+    /// at the current states.
+    pub fn linear_momentum(&mut self) -> Vec3 {
+        let mut total = Vec3::zeros();
+        for b in &mut self.bodies {
+            let _ = crate::algorithms::forward_kinematics(&b.model, &mut b.data, &b.state.q);
+            let _ = crate::algorithms::kinetic_energy(&b.model, &mut b.data, &b.state.q, &b.state.v);
+            for i in 1..b.model.nbodies() {
+                let (inertia, v) = (b.model.inertia(i), &b.data.v[i]);
+                let local = v.linear * inertia.mass + v.angular.cross(&inertia.first_moment);
+                total += b.data.x_wb[i].rotation * local;
+            }
+        }
+        total
+    }
+
+    /// The largest loop-closure translation error (m) and joint-limit overshoot (rad or m) at
+    /// the current states.
+    pub fn constraint_violation(&mut self) -> f64 {
+        let mut worst: f64 = 0.0;
+        for b in &self.bodies {
+            let (lo, hi) = (b.model.lower_position_limit(), b.model.upper_position_limit());
+            for i in 1..b.model.nbodies() {
+                let joint = b.model.joint(i);
+                if matches!(joint, crate::model::Joint::Ball | crate::model::Joint::Free) {
+                    continue;
+                }
+                for k in b.model.idx_q(i)..b.model.idx_q(i) + joint.nq() {
+                    worst = worst.max(lo[k] - b.state.q[k]).max(b.state.q[k] - hi[k]);
+                }
+            }
+        }
+        for (m, closure) in &self.loops {
+            let b = &mut self.bodies[*m];
+            if crate::algorithms::forward_kinematics(&b.model, &mut b.data, &b.state.q).is_ok() {
+                worst = worst.max(crate::constraints::loop_error(&b.data, closure).0.norm());
+            }
+        }
+        worst
     }
 
     fn parameters_of(&self, c: &Contact) -> ContactParameters {
