@@ -41,6 +41,7 @@ pub mod error;
 pub mod io;
 pub mod math;
 pub mod model;
+pub mod plot;
 pub mod scenes;
 pub mod solvers;
 pub mod state;
