@@ -116,6 +116,30 @@ enum BenchCommand {
         #[arg(long, default_value_t = 51)]
         rounds: usize,
     },
+    /// Whole-step time of a scene (models/*.toml, or an MJCF .xml such as
+    /// ../shared/peers/humanoid_fall.xml): median and mean µs per step, time per phase.
+    World {
+        /// Scene file (.toml) or MJCF file (.xml).
+        scene: PathBuf,
+        /// Solver chain instead of the scene's, e.g. `pgs50`, `pgs100,clarabel`.
+        #[arg(long)]
+        solver: Option<String>,
+        /// Steps timed (one episode from the initial state, after `--settle`).
+        #[arg(long, default_value_t = 2500)]
+        steps: usize,
+        /// Steps run untimed first (e.g. to let a stack settle).
+        #[arg(long, default_value_t = 0)]
+        settle: usize,
+        /// Keep sleeping on (off by default so that every step does the full work).
+        #[arg(long)]
+        sleep: bool,
+        /// Episodes timed; the reported figures are medians over episodes.
+        #[arg(long, default_value_t = 5)]
+        rounds: usize,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -133,6 +157,9 @@ fn main() -> ExitCode {
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
         }
+        Command::Bench {
+            what: BenchCommand::World { scene, solver, steps, settle, sleep, rounds, json },
+        } => bench_world(&scene, solver.as_deref(), steps, settle, sleep, rounds, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -454,6 +481,103 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
         for (name, ns) in [("rnea", rnea_ns), ("crba", crba_ns), ("aba", aba_ns), ("nle", nle_ns)] {
             println!("{name:<6} {ns:>10.0} ns/call");
         }
+    }
+    Ok(())
+}
+
+/// A world to time: a TOML scene, or an MJCF file as one multibody on its static geometry.
+fn load_world(path: &Path) -> Result<gelenk::world::World, String> {
+    use gelenk::collision::MeshOptions;
+    use gelenk::world::{World, WorldOptions};
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+        let scene = gelenk::io::mjcf::load_file(path).map_err(|e| e.to_string())?;
+        let mut world = World::new(WorldOptions { dt: scene.timestep, ..WorldOptions::default() });
+        for s in scene.statics.iter().filter(|s| s.collides) {
+            world.add_static(&s.name, &s.shape, s.pose, 0).map_err(|e| e.to_string())?;
+        }
+        let name = scene.model.name().to_string();
+        let i =
+            world.add_multibody(&name, scene.model, &MeshOptions::default()).map_err(|e| e.to_string())?;
+        // Self-collision stays off, as in benches/world.rs (the peers' scenes rest on the plane).
+        world.multibody_mut(i).state.q.copy_from(&scene.q0);
+        Ok(world)
+    } else {
+        Ok(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?.world)
+    }
+}
+
+fn bench_world(
+    path: &Path,
+    solver: Option<&str>,
+    steps: usize,
+    settle: usize,
+    sleep: bool,
+    rounds: usize,
+    as_json: bool,
+) -> Result<(), String> {
+    use std::time::Instant;
+    let solvers =
+        solver.map(gelenk::io::scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
+    let (mut medians, mut means, mut phases) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut rows, mut fallbacks, mut solver_usage) = (0usize, 0usize, std::collections::BTreeMap::new());
+    for _ in 0..rounds.max(1) {
+        let mut world = load_world(path)?;
+        if let Some(s) = &solvers {
+            world.set_solvers(s.clone());
+        }
+        if !sleep {
+            world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..world.options().sleep });
+        }
+        for _ in 0..settle {
+            world.step().map_err(|e| e.to_string())?;
+        }
+        let mut times = Vec::with_capacity(steps);
+        let mut phase = [0u64; 6];
+        (rows, fallbacks) = (0, 0);
+        solver_usage.clear();
+        for _ in 0..steps {
+            let start = Instant::now();
+            let stats = world.step().map_err(|e| e.to_string())?;
+            times.push(start.elapsed().as_secs_f64() * 1e6);
+            for (total, ns) in phase.iter_mut().zip(stats.phase_ns) {
+                *total += ns;
+            }
+            rows = rows.max(stats.rows);
+            fallbacks += stats.fallbacks.len();
+            if stats.rows > 0 {
+                *solver_usage.entry(stats.solver).or_insert(0usize) += 1;
+            }
+        }
+        means.push(times.iter().sum::<f64>() / steps.max(1) as f64);
+        times.sort_by(f64::total_cmp);
+        medians.push(times.get(times.len() / 2).copied().unwrap_or(0.0));
+        phases.push(phase.map(|ns| ns as f64 * 1e-3 / steps.max(1) as f64));
+    }
+    let median = |mut x: Vec<f64>| {
+        x.sort_by(f64::total_cmp);
+        x[x.len() / 2]
+    };
+    let phase: Vec<f64> = (0..6).map(|k| median(phases.iter().map(|p| p[k]).collect())).collect();
+    let (median_us, mean_us) = (median(medians), median(means));
+    const PHASES: [&str; 6] = ["kinematics", "collision", "free_motion", "assembly", "solve", "integrate"];
+    if as_json {
+        let phase_json: serde_json::Map<String, serde_json::Value> =
+            PHASES.iter().zip(&phase).map(|(n, us)| (n.to_string(), json!(us))).collect();
+        println!(
+            "{}",
+            json!({"scene": path.display().to_string(), "steps": steps, "rounds": rounds,
+                   "median_us_per_step": median_us, "mean_us_per_step": mean_us,
+                   "phase_mean_us": phase_json, "max_rows": rows, "fallbacks": fallbacks,
+                   "solver_usage": solver_usage})
+        );
+    } else {
+        println!(
+            "{}: {steps} steps after {settle}, median over {rounds} episodes: {median_us:.1} µs/step (per-step median), {mean_us:.1} µs/step (episode mean)",
+            path.display()
+        );
+        let parts: Vec<String> = PHASES.iter().zip(&phase).map(|(n, us)| format!("{n} {us:.1}")).collect();
+        println!("mean µs per phase: {}", parts.join(", "));
+        println!("up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks in the last episode");
     }
     Ok(())
 }

@@ -46,11 +46,17 @@ pub struct LoopClosure {
     pub erp: f64,
 }
 
+/// The position error of a loop closure between bodies of two multibodies, from their poses
+/// `data_a.x_wb` and `data_b.x_wb`, as [`loop_error`].
+pub fn loop_error_between(data_a: &Data, data_b: &Data, c: &LoopClosure) -> (Vec3, Vec3) {
+    let (xa, xb) = (data_a.x_wb[c.body_a] * c.frame_a, data_b.x_wb[c.body_b] * c.frame_b);
+    (xa.translation - xb.translation, log3(&(xa.rotation * xb.rotation.transpose())))
+}
+
 /// The position error of a loop closure at the poses in `data.x_wb`: (translation error p_A − p_B
 /// in world axes (m), rotation vector of frame A relative to frame B in world axes (rad)).
 pub fn loop_error(data: &Data, c: &LoopClosure) -> (Vec3, Vec3) {
-    let (xa, xb) = (data.x_wb[c.body_a] * c.frame_a, data.x_wb[c.body_b] * c.frame_b);
-    (xa.translation - xb.translation, log3(&(xa.rotation * xb.rotation.transpose())))
+    loop_error_between(data, data, c)
 }
 
 /// Appends the rows of loop closure `c` (index `index`, for [`RowOrigin::Loop`]) of a model whose
@@ -64,14 +70,33 @@ pub fn add_loop_closure_rows(
     index: usize,
     h: f64,
 ) {
-    let (xa, xb) = (data.x_wb[c.body_a] * c.frame_a, data.x_wb[c.body_b] * c.frame_b);
+    add_loop_closure_rows_between(builder, (model, data, col), (model, data, col), c, index, h);
+}
+
+/// One side of a loop closure: the multibody carrying the body, its kinematics (`x_wb` and
+/// `j_world` at the current q) and the column where its velocities start.
+pub type LoopSide<'a> = (&'a Model, &'a Data, usize);
+
+/// Appends the rows of loop closure `c` whose body A belongs to multibody `side_a` and body B to
+/// `side_b` (which may be the same), as [`add_loop_closure_rows`]: rows of the relative velocity
+/// of frame A with respect to frame B, with `u* = −erp · error / h`.
+pub fn add_loop_closure_rows_between(
+    builder: &mut ProblemBuilder,
+    side_a: LoopSide<'_>,
+    side_b: LoopSide<'_>,
+    c: &LoopClosure,
+    index: usize,
+    h: f64,
+) {
+    let ((model_a, data_a, col_a), (model_b, data_b, col_b)) = (side_a, side_b);
+    let (xa, xb) = (data_a.x_wb[c.body_a] * c.frame_a, data_b.x_wb[c.body_b] * c.frame_b);
     let (p_a, p_b) = (xa.translation, xb.translation);
     let origin = RowOrigin::Loop(index);
     let linear = |builder: &mut ProblemBuilder, d: Vec3, point_a: Vec3, point_b: Vec3| {
         let error = d.dot(&(p_a - p_b));
         let (_, row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
-        add_point_direction_row(model, data, c.body_a, &point_a, &d, 1.0, row, col);
-        add_point_direction_row(model, data, c.body_b, &point_b, &d, -1.0, row, col);
+        add_point_direction_row(model_a, data_a, c.body_a, &point_a, &d, 1.0, row, col_a);
+        add_point_direction_row(model_b, data_b, c.body_b, &point_b, &d, -1.0, row, col_b);
     };
     let axes = [Vec3::x(), Vec3::y(), Vec3::z()];
     match c.kind {
@@ -89,8 +114,8 @@ pub fn add_loop_closure_rows(
     }
     let angular = |builder: &mut ProblemBuilder, d: Vec3, error: f64| {
         let (_, row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
-        add_angular_direction_row(model, data, c.body_a, &d, 1.0, row, col);
-        add_angular_direction_row(model, data, c.body_b, &d, -1.0, row, col);
+        add_angular_direction_row(model_a, data_a, c.body_a, &d, 1.0, row, col_a);
+        add_angular_direction_row(model_b, data_b, c.body_b, &d, -1.0, row, col_b);
     };
     match c.kind {
         LoopKind::Ball => {}

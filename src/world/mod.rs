@@ -16,7 +16,7 @@ pub use options::{SleepOptions, SolverKind, WorldOptions};
 
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
-    add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows,
+    add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows_between,
     add_motor_row, ConstraintProblem, ContactParameters, LoopClosure, ProblemBuilder, RowOrigin,
 };
 use crate::error::CollisionError;
@@ -111,7 +111,8 @@ pub struct World {
     collision: CollisionWorld,
     materials: Vec<ContactParameters>,
     pair_parameters: HashMap<(u32, u32), ContactParameters>,
-    loops: Vec<(usize, LoopClosure)>,
+    /// Loop closures: (multibody of body A, multibody of body B, the closure).
+    loops: Vec<(usize, usize, LoopClosure)>,
     chain: SolverChain,
     builder: ProblemBuilder,
     problem: ConstraintProblem,
@@ -218,10 +219,49 @@ impl World {
         self.pair_parameters.insert((a.min(b), a.max(b)), parameters);
     }
 
-    /// Adds a loop closure between two bodies of multibody `multibody`.
+    /// Replaces the solver chain (the first solver whose answer is certified is used); the
+    /// warm-start memory is kept.
+    pub fn set_solvers(&mut self, solvers: Vec<SolverKind>) {
+        self.options.solvers = solvers;
+        self.chain = self.options.chain();
+    }
+
+    /// Replaces the sleeping parameters; disabling sleep wakes every multibody.
+    pub fn set_sleep(&mut self, sleep: SleepOptions) {
+        self.options.sleep = sleep;
+        if !sleep.enabled {
+            for i in 0..self.bodies.len() {
+                self.wake(i);
+            }
+        }
+    }
+
+    /// Adds a loop closure between two bodies of multibody `multibody` (body 0 is the world).
     pub fn add_loop(&mut self, multibody: usize, closure: LoopClosure) -> Result<(), StepError> {
-        self.check_multibody(multibody)?;
-        self.loops.push((multibody, closure));
+        self.add_loop_between(multibody, multibody, closure)
+    }
+
+    /// Adds a loop closure between body `closure.body_a` of multibody `multibody_a` and body
+    /// `closure.body_b` of multibody `multibody_b` (body 0 of either is the world). The two
+    /// multibodies then sleep and wake together.
+    pub fn add_loop_between(
+        &mut self,
+        multibody_a: usize,
+        multibody_b: usize,
+        closure: LoopClosure,
+    ) -> Result<(), StepError> {
+        for (m, body) in [(multibody_a, closure.body_a), (multibody_b, closure.body_b)] {
+            self.check_multibody(m)?;
+            let count = self.bodies[m].model.nbodies();
+            if body >= count {
+                return Err(StepError::IndexOutOfRange { what: "bodies", index: body, count });
+            }
+        }
+        if self.bodies[multibody_a].asleep != self.bodies[multibody_b].asleep {
+            self.wake(multibody_a);
+            self.wake(multibody_b);
+        }
+        self.loops.push((multibody_a, multibody_b, closure));
         Ok(())
     }
 
@@ -584,11 +624,14 @@ impl World {
                 }
             }
         }
-        for (m, closure) in &self.loops {
-            let b = &mut self.bodies[*m];
-            if crate::algorithms::forward_kinematics(&b.model, &mut b.data, &b.state.q).is_ok() {
-                worst = worst.max(crate::constraints::loop_error(&b.data, closure).0.norm());
+        for b in &mut self.bodies {
+            if crate::algorithms::forward_kinematics(&b.model, &mut b.data, &b.state.q).is_err() {
+                return f64::NAN;
             }
+        }
+        for (a, b, closure) in &self.loops {
+            let (da, db) = (&self.bodies[*a].data, &self.bodies[*b].data);
+            worst = worst.max(crate::constraints::loop_error_between(da, db, closure).0.norm());
         }
         worst
     }
@@ -658,10 +701,17 @@ impl World {
             }
             add_joint_friction_rows(&mut builder, &b.model, b.col, h);
         }
-        for (index, (m, closure)) in self.loops.iter().enumerate() {
-            let b = &bodies[*m];
-            if !b.asleep {
-                add_loop_closure_rows(&mut builder, &b.model, &b.data, b.col, closure, index, h);
+        for (index, (a, b, closure)) in self.loops.iter().enumerate() {
+            let (a, b) = (&bodies[*a], &bodies[*b]);
+            if !a.asleep || !b.asleep {
+                add_loop_closure_rows_between(
+                    &mut builder,
+                    (&a.model, &a.data, a.col),
+                    (&b.model, &b.data, b.col),
+                    closure,
+                    index,
+                    h,
+                );
             }
         }
         self.builder = builder;

@@ -102,8 +102,8 @@ pub(crate) fn update(world: &mut World) {
             }
         }
     }
-    for (m, _) in &world.loops {
-        islands.find(*m);
+    for (a, b, _) in &world.loops {
+        islands.union(*a, *b);
     }
     for i in 0..n {
         let b = &world.bodies[i];
