@@ -53,6 +53,10 @@ pub fn solve_mass_matrix_slice(model: &Model, data: &Data, x: &mut [f64]) {
     let n = model.nv();
     for i in (0..n).rev() {
         let xi = x[i];
+        // Rows of a contact or joint Jacobian are zero off the branch they act on.
+        if xi == 0.0 {
+            continue;
+        }
         let mut j = lambda[i];
         while j != NO_DOF {
             x[j] -= h[(i, j)] * xi;

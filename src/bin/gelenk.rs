@@ -519,7 +519,8 @@ fn bench_world(
     let solvers =
         solver.map(gelenk::io::scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
     let (mut medians, mut means, mut phases) = (Vec::new(), Vec::new(), Vec::new());
-    let (mut rows, mut fallbacks, mut solver_usage) = (0usize, 0usize, std::collections::BTreeMap::new());
+    let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
+        (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
     for _ in 0..rounds.max(1) {
         let mut world = load_world(path)?;
         if let Some(s) = &solvers {
@@ -533,7 +534,7 @@ fn bench_world(
         }
         let mut times = Vec::with_capacity(steps);
         let mut phase = [0u64; 6];
-        (rows, fallbacks) = (0, 0);
+        (rows, fallbacks, iterations) = (0, 0, 0);
         solver_usage.clear();
         for _ in 0..steps {
             let start = Instant::now();
@@ -544,6 +545,7 @@ fn bench_world(
             }
             rows = rows.max(stats.rows);
             fallbacks += stats.fallbacks.len();
+            iterations += stats.iterations;
             if stats.rows > 0 {
                 *solver_usage.entry(stats.solver).or_insert(0usize) += 1;
             }
@@ -568,6 +570,7 @@ fn bench_world(
             json!({"scene": path.display().to_string(), "steps": steps, "rounds": rounds,
                    "median_us_per_step": median_us, "mean_us_per_step": mean_us,
                    "phase_mean_us": phase_json, "max_rows": rows, "fallbacks": fallbacks,
+                   "mean_iterations": iterations as f64 / steps.max(1) as f64,
                    "solver_usage": solver_usage})
         );
     } else {
@@ -577,7 +580,10 @@ fn bench_world(
         );
         let parts: Vec<String> = PHASES.iter().zip(&phase).map(|(n, us)| format!("{n} {us:.1}")).collect();
         println!("mean µs per phase: {}", parts.join(", "));
-        println!("up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks in the last episode");
+        println!(
+            "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step in the last episode",
+            iterations as f64 / steps.max(1) as f64
+        );
     }
     Ok(())
 }

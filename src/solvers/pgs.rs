@@ -72,9 +72,12 @@ impl ConstraintSolver for PgsSolver {
         let a = &problem.delassus;
         let diag = |i: usize| a[(i, i)] + problem.regularization[i];
         // With the block structure, sweep in velocity space (ODE's QuickStep): keep
-        // dv = M⁻¹Jᵀλ, so that w_i = J_i (v_free + dv) − u*_i + R_i λ_i costs a few entries;
-        // otherwise use the dense row of A.
-        let sparse = !problem.sparsity.is_empty() && problem.sparsity.row_start.len() == n + 1;
+        // dv = M⁻¹Jᵀλ, so that w_i = J_i (v_free + dv) − u*_i + R_i λ_i costs a dot and an
+        // axpy over the row's segments; otherwise, or when the dense row of A is shorter (few
+        // rows on wide blocks, as on one articulated body), use the dense row of A.
+        let sparse = !problem.sparsity.is_empty()
+            && problem.sparsity.row_start.len() == n + 1
+            && 2 * problem.sparsity.j_values.len() < n * n;
         let nv = problem.sparsity.nv;
         if sparse {
             if self.workspace.dv.len() != nv {
@@ -182,7 +185,7 @@ fn project_friction(l1: f64, l2: f64, normal: f64, mu: f64, mu2: f64, model: Fri
     let s1 = if mu > 0.0 { l1 / mu } else { 0.0 };
     let s2 = if mu2 > 0.0 { l2 / mu2 } else { 0.0 };
     let reach = match model {
-        FrictionModel::Cone => s1.hypot(s2),
+        FrictionModel::Cone => super::residuals::norm2(s1, s2),
         FrictionModel::Pyramid { facets } => {
             let offset = (std::f64::consts::PI / facets as f64).cos();
             (0..facets)

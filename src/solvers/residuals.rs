@@ -72,6 +72,22 @@ pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
     (angle.cos(), angle.sin())
 }
 
+/// Whether row `i` is the normal row of a contact: contact rows are laid out (n, t1, t2), so the
+/// next row is a friction row of a contact whose normal is `i` (O(1), unlike a search).
+fn is_contact_normal(problem: &ConstraintProblem, i: usize) -> bool {
+    match problem.laws.get(i + 1) {
+        Some(RowLaw::Friction { contact }) => problem.contacts.get(*contact).is_some_and(|c| c.normal == i),
+        _ => problem.contacts.iter().any(|c| c.normal == i),
+    }
+}
+
+/// √(a² + b²) without `hypot`'s overflow care, which costs a libm call in the hot loops; the
+/// arguments are impulses and velocities, far from overflow.
+#[inline]
+pub(crate) fn norm2(a: f64, b: f64) -> f64 {
+    (a * a + b * b).sqrt()
+}
+
 /// Computes every residual of λ for `problem`. `w` is scratch space (resized if needed).
 pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVector<f64>) -> Residuals {
     let n = problem.rows();
@@ -90,7 +106,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
             RowLaw::Unilateral => {
                 let natural = (di * li).min(wi).abs();
                 r.signorini = r.signorini.max(natural);
-                if !problem.contacts.iter().any(|c| c.normal == i) {
+                if !is_contact_normal(problem, i) {
                     r.signorini_limits = r.signorini_limits.max(natural);
                 }
                 r.complementarity = r.complementarity.max((li * wi).abs());
@@ -130,7 +146,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         let zero_mu_excess =
             (if c.mu > 0.0 { 0.0 } else { l1.abs() }).max(if c.mu2 > 0.0 { 0.0 } else { l2.abs() });
         let violation = match problem.friction {
-            FrictionModel::Cone => (s1.hypot(s2) - ln.max(0.0)).max(0.0),
+            FrictionModel::Cone => (norm2(s1, s2) - ln.max(0.0)).max(0.0),
             FrictionModel::Pyramid { facets } => (0..facets)
                 .map(|j| {
                     let (nx, ny) = pyramid_facet(facets, j);
@@ -144,7 +160,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         let (m1, m2) = (c.mu * w1, c.mu2 * w2);
         let best = ln.max(0.0)
             * match problem.friction {
-                FrictionModel::Cone => m1.hypot(m2),
+                FrictionModel::Cone => norm2(m1, m2),
                 FrictionModel::Pyramid { facets } => (0..facets)
                     .map(|j| {
                         let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
@@ -164,7 +180,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         // The dual of the friction set: w_n ≥ max over the set's unit section of −f·w_t (the
         // ellipse's ‖(μ w₁, μ₂ w₂)‖, or the pyramid's largest vertex term).
         let support = match problem.friction {
-            FrictionModel::Cone => m1.hypot(m2),
+            FrictionModel::Cone => norm2(m1, m2),
             FrictionModel::Pyramid { facets } => (0..facets)
                 .map(|j| {
                     let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
