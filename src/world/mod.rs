@@ -3,16 +3,20 @@
 //!
 //! [`World::step`] is the table of contents (as in ../shared/DESIGN.md):
 //! check state finite → kinematics → collision → free motion → constraint rows → solve →
-//! velocity update → integrate q on the manifold → sleeping and statistics.
+//! velocity update → integrate q on the manifold (free origins on straight lines, see
+//! [`crate::model::Joint::integrate_decoupled`]) → project loop closures onto their manifold
+//! ([`LoopProjection`]) → sleeping and statistics.
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely.
 
 mod multibody;
 mod options;
+mod projection;
 mod sleep;
 
 pub use multibody::{Motor, Multibody, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
+pub use projection::LoopProjection;
 
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
@@ -112,6 +116,8 @@ pub struct World {
     materials: Vec<ContactParameters>,
     pair_parameters: HashMap<(u32, u32), ContactParameters>,
     loops: Vec<(usize, LoopClosure)>,
+    /// Per multibody, the buffers of its loop-closure projection (None without loops).
+    projections: Vec<Option<projection::ProjectionBuffers>>,
     chain: SolverChain,
     builder: ProblemBuilder,
     problem: ConstraintProblem,
@@ -142,6 +148,7 @@ impl World {
             names: Vec::new(),
             pair_parameters: HashMap::new(),
             loops: Vec::new(),
+            projections: Vec::new(),
             problem: ConstraintProblem::default(),
             lambda: DVector::zeros(0),
             warm: HashMap::new(),
@@ -179,6 +186,7 @@ impl World {
         self.blocks.push((body.col, body.model.nv()));
         self.nv_total += body.model.nv();
         self.bodies.push(body);
+        self.projections.push(None);
         self.names.push(name.to_string());
         self.builder = ProblemBuilder::new(self.nv_total, self.options.friction);
         self.v_all = DVector::zeros(self.nv_total);
@@ -221,7 +229,18 @@ impl World {
     /// Adds a loop closure between two bodies of multibody `multibody`.
     pub fn add_loop(&mut self, multibody: usize, closure: LoopClosure) -> Result<(), StepError> {
         self.check_multibody(multibody)?;
+        let nb = self.bodies[multibody].model.nbodies();
+        for body in [closure.body_a, closure.body_b] {
+            if body >= nb {
+                return Err(StepError::IndexOutOfRange { what: "bodies", index: body, count: nb });
+            }
+        }
         self.loops.push((multibody, closure));
+        let rows = projection::ProjectionBuffers::rows_for(
+            self.loops.iter().filter(|(m, _)| *m == multibody).map(|(_, c)| c),
+        );
+        let model = &self.bodies[multibody].model;
+        self.projections[multibody] = Some(projection::ProjectionBuffers::new(model.nv(), model.nq(), rows));
         Ok(())
     }
 
@@ -493,7 +512,20 @@ impl World {
                 continue;
             }
             b.v_next.copy_from(&self.v_free_all.rows(b.col, nv));
-            b.model.integrate(&b.state.q, &b.v_next, h, &mut b.q_next);
+            // Straight-line origins (R³ × SO(3)), not the SE(3) screw: see
+            // `Joint::integrate_decoupled` (a rolling ball would otherwise sink into its plane).
+            b.model.integrate_decoupled(&b.state.q, &b.v_next, h, &mut b.q_next);
+            if !b.kinematic {
+                b.transport_free_velocities(h);
+            }
+            if let Some(buffers) = self.projections[i].as_mut() {
+                if !b.kinematic && b.factored {
+                    let closures = self.loops.iter().filter(move |(m, _)| *m == i).map(|(_, c)| c);
+                    buffers
+                        .project(b, closures, &self.options.loop_projection)
+                        .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+                }
+            }
             check_finite(&self.names[i], &b.model, &b.q_next, &b.v_next, true)?;
         }
         for b in &mut self.bodies {
