@@ -98,6 +98,11 @@ impl ProblemBuilder {
         self.targets[i] = target;
     }
 
+    /// The target velocity u* of row `i`.
+    pub fn target(&self, i: usize) -> f64 {
+        self.targets[i]
+    }
+
     /// The Jacobian row `i`.
     pub fn row(&self, i: usize) -> &[f64] {
         &self.rows[i * self.nv..(i + 1) * self.nv]

@@ -256,6 +256,20 @@ impl Model {
             j.integrate(&q.as_slice()[rq.clone()], &v.as_slice()[rv], dt, &mut q_out.as_mut_slice()[rq]);
         }
     }
+    /// `q_out = q ⊕ v·dt` with [`Joint::integrate_decoupled`] for every joint: free and planar
+    /// origins move along straight lines (the world's time step uses this).
+    pub fn integrate_decoupled(&self, q: &DVector<f64>, v: &DVector<f64>, dt: f64, q_out: &mut DVector<f64>) {
+        for i in 1..self.nbodies() {
+            let j = &self.joints[i];
+            let (rq, rv) = (self.idx_q[i]..self.idx_q[i] + j.nq(), self.idx_v[i]..self.idx_v[i] + j.nv());
+            j.integrate_decoupled(
+                &q.as_slice()[rq.clone()],
+                &v.as_slice()[rv],
+                dt,
+                &mut q_out.as_mut_slice()[rq],
+            );
+        }
+    }
     /// `v_out = q1 ⊖ q0`: the velocity that [`Model::integrate`] turns `q0` into `q1` with in unit time.
     pub fn difference(&self, q0: &DVector<f64>, q1: &DVector<f64>, v_out: &mut DVector<f64>) {
         for i in 1..self.nbodies() {

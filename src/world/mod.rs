@@ -3,16 +3,20 @@
 //!
 //! [`World::step`] is the table of contents (as in ../shared/DESIGN.md):
 //! check state finite → kinematics → collision → free motion → constraint rows → solve →
-//! velocity update → integrate q on the manifold → sleeping and statistics.
+//! velocity update → integrate q on the manifold (free origins on straight lines, see
+//! [`crate::model::Joint::integrate_decoupled`]) → project loop closures onto their manifold
+//! ([`LoopProjection`]) → sleeping and statistics.
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely.
 
 mod multibody;
 mod options;
+mod projection;
 mod sleep;
 
 pub use multibody::{Motor, Multibody, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
+pub use projection::LoopProjection;
 
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
@@ -113,6 +117,9 @@ pub struct World {
     pair_parameters: HashMap<(u32, u32), ContactParameters>,
     /// Loop closures: (multibody of body A, multibody of body B, the closure).
     loops: Vec<(usize, usize, LoopClosure)>,
+    /// Per multibody, the buffers of the position projection of its own loop closures (None
+    /// without loops within it).
+    projections: Vec<Option<projection::ProjectionBuffers>>,
     chain: SolverChain,
     builder: ProblemBuilder,
     problem: ConstraintProblem,
@@ -143,6 +150,7 @@ impl World {
             names: Vec::new(),
             pair_parameters: HashMap::new(),
             loops: Vec::new(),
+            projections: Vec::new(),
             problem: ConstraintProblem::default(),
             lambda: DVector::zeros(0),
             warm: HashMap::new(),
@@ -180,6 +188,7 @@ impl World {
         self.blocks.push((body.col, body.model.nv()));
         self.nv_total += body.model.nv();
         self.bodies.push(body);
+        self.projections.push(None);
         self.names.push(name.to_string());
         self.builder = ProblemBuilder::new(self.nv_total, self.options.friction);
         self.v_all = DVector::zeros(self.nv_total);
@@ -243,7 +252,10 @@ impl World {
 
     /// Adds a loop closure between body `closure.body_a` of multibody `multibody_a` and body
     /// `closure.body_b` of multibody `multibody_b` (body 0 of either is the world). The two
-    /// multibodies then sleep and wake together.
+    /// multibodies then sleep and wake together. Closures within one multibody are also
+    /// projected back onto their manifold after each step ([`WorldOptions::loop_projection`]);
+    /// closures between two multibodies rely on their velocity rows and Baumgarte feedback
+    /// (`erp`) alone.
     pub fn add_loop_between(
         &mut self,
         multibody_a: usize,
@@ -262,7 +274,18 @@ impl World {
             self.wake(multibody_b);
         }
         self.loops.push((multibody_a, multibody_b, closure));
+        if multibody_a == multibody_b {
+            let m = multibody_a;
+            let rows = projection::ProjectionBuffers::rows_for(self.own_loops(m));
+            let model = &self.bodies[m].model;
+            self.projections[m] = Some(projection::ProjectionBuffers::new(model.nv(), model.nq(), rows));
+        }
         Ok(())
+    }
+
+    /// The loop closures between bodies of multibody `m` alone.
+    fn own_loops(&self, m: usize) -> impl Iterator<Item = &LoopClosure> {
+        self.loops.iter().filter(move |(a, b, _)| *a == m && *b == m).map(|(_, _, c)| c)
     }
 
     /// The collision world (colliders, materials, filters).
@@ -533,7 +556,21 @@ impl World {
                 continue;
             }
             b.v_next.copy_from(&self.v_free_all.rows(b.col, nv));
-            b.model.integrate(&b.state.q, &b.v_next, h, &mut b.q_next);
+            // Straight-line origins (R³ × SO(3)), not the SE(3) screw: see
+            // `Joint::integrate_decoupled` (a rolling ball would otherwise sink into its plane).
+            b.model.integrate_decoupled(&b.state.q, &b.v_next, h, &mut b.q_next);
+            if !b.kinematic {
+                b.transport_free_velocities(h);
+            }
+            if let Some(buffers) = self.projections[i].as_mut() {
+                if !b.kinematic && b.factored {
+                    let closures =
+                        self.loops.iter().filter(move |(a, b, _)| *a == i && *b == i).map(|(_, _, c)| c);
+                    buffers
+                        .project(b, closures, &self.options.loop_projection)
+                        .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+                }
+            }
             check_finite(&self.names[i], &b.model, &b.q_next, &b.v_next, true)?;
         }
         for b in &mut self.bodies {

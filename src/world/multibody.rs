@@ -176,6 +176,7 @@ impl Multibody {
             self.v_free.copy_from(&self.state.v);
             self.v_free.axpy(h, a, 1.0);
             self.factored = false;
+            self.add_frame_rotation_terms(h);
             return Ok(());
         }
         crba(&self.model, &mut self.data, &self.state.q)?;
@@ -192,6 +193,47 @@ impl Multibody {
         solve_mass_matrix_slice(&self.model, &self.data, self.rhs.as_mut_slice());
         self.v_free.copy_from(&self.state.v);
         self.v_free.axpy(h, &self.rhs, 1.0);
+        self.add_frame_rotation_terms(h);
         Ok(())
+    }
+
+    /// Free joints: turns the body-frame rate `v̇` of the origin's velocity into its classical
+    /// acceleration `v̇ + ω × v`, so that `v_free`'s linear part is the origin's velocity at the end
+    /// of the step expressed in the axes of the start of the step (where the constraint rows
+    /// are). [`Multibody::transport_free_velocities`] then re-expresses it in the new axes, exactly.
+    ///
+    /// Why: body-frame velocities carry the term `−ω × v` of the rotating axes. Integrated
+    /// explicitly it multiplies |v| by √(1 + (ω h)²) every step — a body spinning at 24 rad/s
+    /// gains a third of its speed per second at h = 1 ms, and a rolling ball accelerates at
+    /// 0.74 g sin θ instead of 5/7 g sin θ.
+    fn add_frame_rotation_terms(&mut self, h: f64) {
+        for i in 1..self.model.nbodies() {
+            if matches!(self.model.joint(i), Joint::Free) {
+                let k = self.model.idx_v(i);
+                let v = Vec3::new(self.state.v[k], self.state.v[k + 1], self.state.v[k + 2]);
+                let w = Vec3::new(self.state.v[k + 3], self.state.v[k + 4], self.state.v[k + 5]);
+                let correction = w.cross(&v) * h;
+                for a in 0..3 {
+                    self.v_free[k + a] += correction[a];
+                }
+            }
+        }
+    }
+
+    /// Free joints: `v_next`'s linear part, expressed in the axes of the start of the step, in
+    /// the axes after the step turned them by `exp(ω h)`: `v ← exp(ω h)ᵀ v`. The angular part is
+    /// invariant under its own rotation.
+    pub(crate) fn transport_free_velocities(&mut self, h: f64) {
+        for i in 1..self.model.nbodies() {
+            if matches!(self.model.joint(i), Joint::Free) {
+                let k = self.model.idx_v(i);
+                let v = Vec3::new(self.v_next[k], self.v_next[k + 1], self.v_next[k + 2]);
+                let w = Vec3::new(self.v_next[k + 3], self.v_next[k + 4], self.v_next[k + 5]);
+                let turned = nalgebra::UnitQuaternion::from_scaled_axis(w * h).inverse() * v;
+                for a in 0..3 {
+                    self.v_next[k + a] = turned[a];
+                }
+            }
+        }
     }
 }

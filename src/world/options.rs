@@ -108,6 +108,8 @@ pub struct WorldOptions {
     pub sleep: SleepOptions,
     /// Compute energy and momentum in the step statistics (costs one extra pass).
     pub diagnostics: bool,
+    /// Position-level projection of loop closures after each step.
+    pub loop_projection: super::LoopProjection,
 }
 
 impl Default for WorldOptions {
@@ -125,6 +127,7 @@ impl Default for WorldOptions {
             limits: JointLimitParameters::default(),
             sleep: SleepOptions::default(),
             diagnostics: false,
+            loop_projection: super::LoopProjection::default(),
         }
     }
 }

@@ -57,6 +57,20 @@ pub(super) fn integrate(q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
     write_quaternion(&r_new, &mut q_out[3..7]);
 }
 
+/// The step of rigid-body engines (ODE, MuJoCo) on R³ × SO(3): the origin moves along the
+/// straight line `p + R v dt` (R at the start, so `R v` is the origin's world velocity), the
+/// orientation turns by `exp(ω dt)`. Unlike the SE(3) screw of [`integrate`], the origin does
+/// not curve with the rotation, so a ball rolling without slip (contact point at rest) keeps its
+/// centre on the plane; both agree to first order in dt.
+pub(super) fn integrate_decoupled(q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
+    let (r, p) = pose(q);
+    let p_new = p + r * (Vec3::new(v[0], v[1], v[2]) * dt);
+    let mut r_new = r * UnitQuaternion::from_scaled_axis(Vec3::new(v[3], v[4], v[5]) * dt);
+    r_new.renormalize();
+    q_out[0..3].copy_from_slice(p_new.as_slice());
+    write_quaternion(&r_new, &mut q_out[3..7]);
+}
+
 pub(super) fn difference(q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
     let (r0, p0) = pose(q0);
     let (r1, p1) = pose(q1);

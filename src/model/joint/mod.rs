@@ -196,6 +196,19 @@ impl Joint {
         }
     }
 
+    /// Like [`Joint::integrate`], except that free and planar joints move their origin along a
+    /// straight line with its world velocity at the start and turn separately (R³ × SO(3), the
+    /// step of rigid-body engines) instead of along the SE(3) screw of constant body velocity.
+    /// Both are first-order accurate; the decoupled step keeps a ball rolling without slip on
+    /// its plane, where the screw step sinks its centre by r(ω dt)²/2 per step.
+    pub fn integrate_decoupled(&self, q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
+        match self {
+            Joint::Free => free::integrate_decoupled(q, v, dt, q_out),
+            Joint::Planar => planar::integrate_decoupled(q, v, dt, q_out),
+            _ => self.integrate(q, v, dt, q_out),
+        }
+    }
+
     /// `v_out = q1 ⊖ q0`: the constant velocity that moves `q0` to `q1` in unit time. Angles of
     /// hinges are real coordinates (not wrapped), so the difference is their plain difference.
     pub fn difference(&self, q0: &[f64], q1: &[f64], v_out: &mut [f64]) {

@@ -33,6 +33,15 @@ pub(super) fn integrate(q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
     q_out[2] = q[2] + phi;
 }
 
+/// The decoupled step on R² × SO(2): the origin moves along the straight line `R(θ) (vx, vy) dt`,
+/// the angle by `ω dt` (see `free::integrate_decoupled`).
+pub(super) fn integrate_decoupled(q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
+    let (sn, cs) = q[2].sin_cos();
+    q_out[0] = q[0] + (cs * v[0] - sn * v[1]) * dt;
+    q_out[1] = q[1] + (sn * v[0] + cs * v[1]) * dt;
+    q_out[2] = q[2] + v[2] * dt;
+}
+
 pub(super) fn difference(q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
     let phi = q1[2] - q0[2];
     let (sn, cs) = q0[2].sin_cos();

@@ -1,0 +1,218 @@
+//! Position-level projection of loop closures after the velocity step.
+//!
+//! The velocity rows of a loop closure make `J v⁺ = −erp·e/h`, but integrating q with the
+//! constant v⁺ over a step leaves a second-order error `e = O(h²‖v‖²/L)` that Baumgarte
+//! feedback only damps (erp = 0.2 keeps a steady error of about five steps' drift, ~1e-5 m on a
+//! four-bar at h = 1 ms). After integration we therefore project q back onto the closure
+//! manifold by Gauss–Newton steps in the mass metric (the SHAKE/RATTLE projection,
+//! Hairer–Lubich–Wanner, *Geometric Numerical Integration*, VII.1):
+//!
+//! `q ← q ⊕ Δ`, `Δ = −M⁻¹Jᵀ (J M⁻¹ Jᵀ + εI)⁻¹ e(q)`,
+//!
+//! until ‖e‖∞ is below the tolerance, then project v⁺ onto the tangent space the same way,
+//! `v ← v − M⁻¹Jᵀ (J M⁻¹ Jᵀ + εI)⁻¹ J v`, which removes only kinetic energy. M is the
+//! factor of the step (at the start-of-step q): any fixed positive-definite metric gives the
+//! same fixed point, and this one makes the correction the least-action one. The small ε keeps
+//! redundant rows (a planar four-bar's hinge closure has 5 rows of rank 2) harmless.
+
+use super::multibody::Multibody;
+use crate::algorithms::{compute_joint_jacobians, solve_mass_matrix_slice};
+use crate::constraints::{add_loop_closure_rows, FrictionModel, LoopClosure, LoopKind, ProblemBuilder};
+use crate::error::DynamicsError;
+use nalgebra::DVector;
+
+/// Options of the position-level loop-closure projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoopProjection {
+    /// Largest number of Gauss–Newton steps per step (0 turns the projection off and leaves
+    /// only the Baumgarte feedback of each closure's `erp`).
+    pub iterations: usize,
+    /// Stop when every closure error component is below this (m or rad).
+    pub tolerance: f64,
+}
+
+impl Default for LoopProjection {
+    fn default() -> Self {
+        Self { iterations: 8, tolerance: 1e-12 }
+    }
+}
+
+/// Buffers of the projection of one multibody's loop closures, sized when a loop is added.
+#[derive(Clone, Debug)]
+pub(crate) struct ProjectionBuffers {
+    builder: ProblemBuilder,
+    /// M⁻¹Jᵀ, column-major (nv × rows).
+    minv_jt: Vec<f64>,
+    /// J M⁻¹ Jᵀ + εI and then its Cholesky factor (rows × rows, row-major).
+    gram: Vec<f64>,
+    /// Right-hand side and multipliers (rows).
+    mu: Vec<f64>,
+    /// Correction (nv).
+    delta: DVector<f64>,
+    /// The configuration before a correction.
+    q_before: DVector<f64>,
+}
+
+/// Rows a closure of this kind contributes.
+fn rows_of(kind: &LoopKind) -> usize {
+    match kind {
+        LoopKind::Ball => 3,
+        LoopKind::Hinge { .. } | LoopKind::Slider { .. } => 5,
+        LoopKind::Weld => 6,
+    }
+}
+
+impl ProjectionBuffers {
+    /// Buffers for a multibody of `nv` velocities and `nq` coordinates with `rows` loop rows.
+    pub(crate) fn new(nv: usize, nq: usize, rows: usize) -> Self {
+        let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
+        for _ in 0..rows {
+            builder.push_row(
+                crate::constraints::RowLaw::Bilateral,
+                0.0,
+                0.0,
+                crate::constraints::RowOrigin::Other,
+            );
+        }
+        builder.clear();
+        Self {
+            builder,
+            minv_jt: vec![0.0; nv * rows],
+            gram: vec![0.0; rows * rows],
+            mu: vec![0.0; rows],
+            delta: DVector::zeros(nv),
+            q_before: DVector::zeros(nq),
+        }
+    }
+
+    /// Row count for a set of closures.
+    pub(crate) fn rows_for<'a>(closures: impl Iterator<Item = &'a LoopClosure>) -> usize {
+        closures.map(|c| rows_of(&c.kind)).sum()
+    }
+
+    /// Fills the rows at the multibody's current `data` (poses and Jacobians at `b.q_next`) with
+    /// targets −e, M⁻¹Jᵀ and the factored Gram matrix; returns ‖e‖∞.
+    fn linearize<'a>(&mut self, b: &Multibody, closures: impl Iterator<Item = &'a LoopClosure>) -> f64 {
+        self.builder.clear();
+        for c in closures {
+            // erp = 1 and h = 1: the target is exactly −e for each row.
+            let unit = LoopClosure { erp: 1.0, ..*c };
+            add_loop_closure_rows(&mut self.builder, &b.model, &b.data, 0, &unit, 0, 1.0);
+        }
+        let (n, nv) = (self.builder.len(), b.model.nv());
+        let mut error: f64 = 0.0;
+        for i in 0..n {
+            error = error.max(self.builder.target(i).abs());
+            let column = &mut self.minv_jt[i * nv..(i + 1) * nv];
+            column.copy_from_slice(self.builder.row(i));
+            solve_mass_matrix_slice(&b.model, &b.data, column);
+        }
+        let mut trace = 0.0;
+        for i in 0..n {
+            for j in 0..=i {
+                let row = self.builder.row(i);
+                let x = &self.minv_jt[j * nv..(j + 1) * nv];
+                let value: f64 = row.iter().zip(x).map(|(a, b)| a * b).sum();
+                self.gram[i * n + j] = value;
+                self.gram[j * n + i] = value;
+            }
+            trace += self.gram[i * n + i];
+        }
+        // ε relative to the scale of the rows: redundant rows then get a negligible multiplier.
+        let epsilon = 1e-12 * trace.max(f64::MIN_POSITIVE) / n.max(1) as f64;
+        for i in 0..n {
+            self.gram[i * n + i] += epsilon;
+        }
+        cholesky_in_place(&mut self.gram[..n * n], n);
+        error
+    }
+
+    /// Solves the Gram system for the right-hand side in `mu` and writes −M⁻¹Jᵀμ into `delta`.
+    fn correction(&mut self, nv: usize) {
+        let n = self.builder.len();
+        cholesky_solve(&self.gram[..n * n], n, &mut self.mu[..n]);
+        self.delta.fill(0.0);
+        for i in 0..n {
+            let x = &self.minv_jt[i * nv..(i + 1) * nv];
+            for (d, xk) in self.delta.iter_mut().zip(x) {
+                *d -= self.mu[i] * xk;
+            }
+        }
+    }
+
+    /// Projects `b.q_next` onto the closures' manifold and `b.v_next` onto its tangent space.
+    /// `b.data` must hold the mass-matrix factor of this step; on return it holds poses and
+    /// Jacobians at the projected q.
+    pub(crate) fn project<'a>(
+        &mut self,
+        b: &mut Multibody,
+        closures: impl Iterator<Item = &'a LoopClosure> + Clone,
+        options: &LoopProjection,
+    ) -> Result<(), DynamicsError> {
+        let nv = b.model.nv();
+        for _ in 0..options.iterations {
+            compute_joint_jacobians(&b.model, &mut b.data, &b.q_next)?;
+            let error = self.linearize(b, closures.clone());
+            if error <= options.tolerance {
+                break;
+            }
+            // J Δ = −e: the rows' targets are −e already.
+            for i in 0..self.builder.len() {
+                self.mu[i] = -self.builder.target(i);
+            }
+            self.correction(nv);
+            self.q_before.copy_from(&b.q_next);
+            b.model.integrate(&self.q_before, &self.delta, 1.0, &mut b.q_next);
+        }
+        if options.iterations == 0 {
+            return Ok(());
+        }
+        compute_joint_jacobians(&b.model, &mut b.data, &b.q_next)?;
+        self.linearize(b, closures);
+        // Tangent projection of the velocity: μ = (J M⁻¹ Jᵀ)⁻¹ J v, v ← v − M⁻¹Jᵀμ.
+        for i in 0..self.builder.len() {
+            self.mu[i] = self.builder.row(i).iter().zip(b.v_next.iter()).map(|(a, v)| a * v).sum();
+        }
+        self.correction(nv);
+        b.v_next += &self.delta;
+        Ok(())
+    }
+}
+
+/// In-place Cholesky factor `G = L Lᵀ` of a symmetric positive-definite `n × n` row-major
+/// matrix (L in the lower triangle).
+fn cholesky_in_place(g: &mut [f64], n: usize) {
+    for j in 0..n {
+        let mut d = g[j * n + j];
+        for k in 0..j {
+            d -= g[j * n + k] * g[j * n + k];
+        }
+        let d = d.max(f64::MIN_POSITIVE).sqrt();
+        g[j * n + j] = d;
+        for i in j + 1..n {
+            let mut s = g[i * n + j];
+            for k in 0..j {
+                s -= g[i * n + k] * g[j * n + k];
+            }
+            g[i * n + j] = s / d;
+        }
+    }
+}
+
+/// Solves `L Lᵀ x = b` in place with the factor of [`cholesky_in_place`].
+fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
+    for i in 0..n {
+        let mut s = x[i];
+        for k in 0..i {
+            s -= l[i * n + k] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = x[i];
+        for k in i + 1..n {
+            s -= l[k * n + i] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+}
