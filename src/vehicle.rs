@@ -90,14 +90,14 @@ pub struct VehicleConfig {
 
 impl VehicleConfig {
     /// The wiring of `models/buggy.urdf`: joints `front_left`, `front_right`, `rear_left`,
-    /// `rear_right`, wheels of radius 0.3 m, 400 N·m drive and 1500 N·m brake per wheel,
+    /// `rear_right`, wheels of radius 0.3 m, 300 N·m drive and 1500 N·m brake per wheel,
     /// steering servos of gain 20 1/s, 3 rad/s and 2000 N·m.
     pub fn buggy() -> Self {
         Self {
             front: ["front_left".into(), "front_right".into()],
             rear: ["rear_left".into(), "rear_right".into()],
             wheel_radius: 0.3,
-            drive_torque: 400.0,
+            drive_torque: 300.0,
             brake_torque: 1500.0,
             steering_gain: 20.0,
             steering_rate: 3.0,
@@ -216,7 +216,7 @@ impl Vehicle {
                 value: wheelbase.min(track),
             });
         }
-        let mut vehicle =
+        let vehicle =
             Self { multibody, config, wheels, wheelbase, track, command: VehicleCommand::default() };
         vehicle.apply(world);
         Ok(vehicle)

@@ -457,17 +457,20 @@ fn vehicle_commands_drive_the_buggy_at_their_times() {
 fn bad_vehicle_entries_are_errors_with_their_line() {
     let buggy = "[[urdf]]\npath = \"buggy.urdf\"\nname = \"car\"\nfloating = true\n";
     // An unknown key in a command: its line and path.
-    let message =
-        load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nthrottle = 3\n"));
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nthrottle = 3\n"
+    ));
     assert!(message.contains("line 9") && message.contains("vehicle[0].command[0].throttle"), "{message}");
     // A multibody that does not exist.
     let message = load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"truck\"\n"));
     assert!(message.contains("line 6") && message.contains("truck"), "{message}");
     // A negative time, an empty command, speed with coast, a steering angle out of range.
-    let message =
-        load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = -1\nspeed = 1\n"));
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = -1\nspeed = 1\n"
+    ));
     assert!(message.contains("line 8") && message.contains("command[0].at"), "{message}");
-    let message = load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\n"));
+    let message =
+        load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\n"));
     assert!(message.contains("line 7") && message.contains("at least one"), "{message}");
     let message = load_error(&format!(
         "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nspeed = 2\ncoast = true\n"

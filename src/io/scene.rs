@@ -1745,25 +1745,27 @@ impl Builder<'_> {
             steering_rate: v.steering_rate.map_or(defaults.steering_rate, |x| x.0),
             steering_torque: v.steering_torque.map_or(defaults.steering_torque, |x| x.0),
         };
-        let vehicle =
-            Vehicle::attach(world, index, config).map_err(|e| self.src.invalid(span.clone(), e.to_string()))?;
+        let vehicle = Vehicle::attach(world, index, config)
+            .map_err(|e| self.src.invalid(span.clone(), e.to_string()))?;
         let mut commands = Vec::with_capacity(v.command.len());
         for c in &v.command {
             let cspan = c.span();
             let c = c.get_ref();
             if c.speed.is_none() && c.coast.is_none() && c.steering_deg.is_none() && c.brake.is_none() {
-                return Err(self
-                    .src
-                    .invalid(cspan, "a command sets at least one of `speed`, `coast`, `steering_deg`, `brake`"));
+                return Err(self.src.invalid(
+                    cspan,
+                    "a command sets at least one of `speed`, `coast`, `steering_deg`, `brake`",
+                ));
             }
             if c.speed.is_some() && c.coast == Some(true) {
                 return Err(self.src.invalid(cspan, "give `speed` or `coast = true`, not both"));
             }
             if let Some(deg) = c.steering_deg {
                 if deg.0.abs() >= 90.0 {
-                    return Err(self
-                        .src
-                        .invalid(cspan, format!("`steering_deg` must be between -90 and 90, got {}", deg.0)));
+                    return Err(self.src.invalid(
+                        cspan,
+                        format!("`steering_deg` must be between -90 and 90, got {}", deg.0),
+                    ));
                 }
             }
             commands.push(TimedCommand {
