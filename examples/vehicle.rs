@@ -37,10 +37,35 @@ fn buggy_world(mu: f64, slope_deg: f64) -> Result<(World, Vehicle), Box<dyn Erro
 }
 
 fn run(world: &mut World, seconds: f64) -> Result<(), Box<dyn Error>> {
-    for _ in 0..(seconds / world.options().dt).round() as usize {
-        world.step()?;
-    }
+    timed(world, seconds)?;
     Ok(())
+}
+
+/// Steps for `seconds` and returns the mean wall time per step (µs) of each phase: kinematics,
+/// collision, free motion, rows + assembly, solve, integration.
+fn timed(world: &mut World, seconds: f64) -> Result<[f64; 6], Box<dyn Error>> {
+    let steps = (seconds / world.options().dt).round() as usize;
+    let mut total = [0.0; 6];
+    for _ in 0..steps {
+        let stats = world.step()?;
+        for (t, ns) in total.iter_mut().zip(stats.phase_ns) {
+            *t += ns as f64 * 1e-3 / steps as f64;
+        }
+    }
+    Ok(total)
+}
+
+fn print_phases(what: &str, phases: &[f64; 6]) {
+    println!(
+        "{what}: {:.1} µs/step = kinematics {:.1} + collision {:.1} + free motion {:.1} + rows {:.1} + solve {:.1} + integration {:.1}",
+        phases.iter().sum::<f64>(),
+        phases[0],
+        phases[1],
+        phases[2],
+        phases[3],
+        phases[4],
+        phases[5]
+    );
 }
 
 /// Kåsa's algebraic circle fit: radius of the least-squares circle through `points`.
@@ -72,22 +97,21 @@ fn main() -> Result<(), Box<dyn Error>> {
     println!("throttle: 5 m/s");
     println!("   t [s]   speed [m/s]   x [m]    y [m]");
     let clock = Instant::now();
-    let mut steps = 0;
     for k in 1..=6 {
         run(&mut world, 0.5)?;
-        steps += 250;
         let p = vehicle.position(&world) - start;
         println!("   {:4.1}    {:8.3}    {:7.3}  {:7.4}", 0.5 * k as f64, vehicle.speed(&world), p.x, p.y);
     }
     let wall = clock.elapsed().as_secs_f64();
     let p = vehicle.position(&world) - start;
     println!(
-        "lateral drift {:.2e} m over {:.2} m ({:.4} %); {:.1} µs per step (this build)",
+        "lateral drift {:.2e} m over {:.2} m ({:.4} %); {:.1} µs per step while accelerating (this build)",
         p.y.abs(),
         p.x,
         100.0 * p.y.abs() / p.x,
-        1e6 * wall / steps as f64
+        1e6 * wall / 1500.0
     );
+    print_phases("cruising at 5 m/s", &timed(&mut world, 1.0)?);
 
     // 2. Circle at 20° steering, 3 m/s.
     let delta = 20f64.to_radians();
@@ -102,8 +126,12 @@ fn main() -> Result<(), Box<dyn Error>> {
     run(&mut world, 4.0)?;
     let axle = vehicle.rear_axle_center();
     let mut points = Vec::new();
+    let mut phases = [0.0; 6];
     for _ in 0..2000 {
-        world.step()?;
+        let stats = world.step()?;
+        for (t, ns) in phases.iter_mut().zip(stats.phase_ns) {
+            *t += ns as f64 * 1e-3 / 2000.0;
+        }
         let p = vehicle.pose(&world).act_point(&axle);
         points.push((p.x, p.y));
     }
@@ -113,6 +141,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         "turn radius of the rear axle: measured {measured:.3} m, bicycle model L/tan δ = {predicted:.3} m ({:+.1} %)",
         100.0 * (measured - predicted) / predicted
     );
+    print_phases("turning", &phases);
 
     // 3. Parked on a 20° slope.
     println!("\nparked on a 20° slope (brakes: motors at 0 rad/s, 1500 N·m each), 5 s:");
