@@ -45,6 +45,7 @@ pub mod plot;
 pub mod scenes;
 pub mod solvers;
 pub mod state;
+pub mod vehicle;
 pub mod world;
 
 /// The README's examples are compiled and run as doctests.

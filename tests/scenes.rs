@@ -429,3 +429,65 @@ fn the_ball_bounces_back_up() {
     let rebound = z[lowest..].iter().cloned().fold(f64::MIN, f64::max);
     assert!(rebound > 0.5, "rebound to {rebound} m");
 }
+
+#[test]
+fn vehicle_commands_drive_the_buggy_at_their_times() {
+    let mut s = scene::load_file(models_dir().join("buggy_drive.toml")).unwrap();
+    assert_eq!(s.vehicles.len(), 1);
+    let commands = &s.vehicles[0].commands;
+    assert_eq!(commands.len(), 4);
+    assert_eq!((commands[0].at, commands[0].speed), (0.5, Some(5.0)));
+    assert!((commands[1].steering.unwrap() - 20f64.to_radians()).abs() < 1e-15);
+    assert_eq!(commands[3].brake, Some(true));
+    // At rest before 0.5 s; after 3 s, 2.5 s of throttle: at the commanded 5 m/s (±5 %, the
+    // vehicle criterion).
+    let options = RunOptions { duration: Some(0.4), ..RunOptions::default() };
+    scene::run(&mut s, &options, |_| {}).unwrap();
+    let vehicle = s.vehicles[0].vehicle.clone();
+    assert!(vehicle.speed(&s.world).abs() < 1e-3);
+    assert_eq!(s.vehicles[0].applied, 0);
+    let options = RunOptions { duration: Some(2.6), ..RunOptions::default() };
+    scene::run(&mut s, &options, |_| {}).unwrap();
+    assert_eq!(s.vehicles[0].applied, 1);
+    let v = vehicle.speed(&s.world);
+    assert!((v - 5.0).abs() < 0.25, "{v} m/s");
+}
+
+#[test]
+fn bad_vehicle_entries_are_errors_with_their_line() {
+    let buggy = "[[urdf]]\npath = \"buggy.urdf\"\nname = \"car\"\nfloating = true\n";
+    // An unknown key in a command: its line and path.
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nthrottle = 3\n"
+    ));
+    assert!(message.contains("line 9") && message.contains("vehicle[0].command[0].throttle"), "{message}");
+    // A multibody that does not exist.
+    let message = load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"truck\"\n"));
+    assert!(message.contains("line 6") && message.contains("truck"), "{message}");
+    // A negative time, an empty command, speed with coast, a steering angle out of range.
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = -1\nspeed = 1\n"
+    ));
+    assert!(message.contains("line 8") && message.contains("command[0].at"), "{message}");
+    let message =
+        load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\n"));
+    assert!(message.contains("line 7") && message.contains("at least one"), "{message}");
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nspeed = 2\ncoast = true\n"
+    ));
+    assert!(message.contains("not both"), "{message}");
+    let message = load_error(&format!(
+        "{buggy}[[vehicle]]\nmultibody = \"car\"\n[[vehicle.command]]\nat = 1\nsteering_deg = 95\n"
+    ));
+    assert!(message.contains("steering_deg"), "{message}");
+    // A wheel joint that is not there, and a chassis fixed to the world.
+    let message =
+        load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\nfront = [\"fl\", \"front_right\"]\n"));
+    assert!(message.contains("line 5") && message.contains("no joint `fl`"), "{message}");
+    let fixed = buggy.replace("floating = true", "floating = false");
+    let message = load_error(&format!("{fixed}[[vehicle]]\nmultibody = \"car\"\n"));
+    assert!(message.contains("free joint"), "{message}");
+    // A bad parameter.
+    let message = load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\nwheel_radius = 0\n"));
+    assert!(message.contains("line 7") && message.contains("vehicle[0].wheel_radius"), "{message}");
+}

@@ -487,7 +487,8 @@ fn pgs_errors(problem: &ConstraintProblem, sweeps: &[usize]) -> Vec<f64> {
                 ..Default::default()
             };
             let (l, info) = solve_with(&mut pgs, problem);
-            assert_eq!(info.iterations, k);
+            // With tolerance 0, PGS stops early only at an exact fixed point (no impulse changed).
+            assert!(info.iterations <= k);
             max_diff(&row_velocities(problem, &l), &w_ref)
         })
         .collect()

@@ -9,6 +9,9 @@
 //! column, and the key path (`body[2].mass`). Paths in a scene (URDF files, package search
 //! paths) are relative to the scene file's directory.
 //!
+//! Vehicle commands (`[[vehicle.command]]`) are applied by [`run`] (or [`Scene::apply_controls`])
+//! before the first step that starts at or after their time `at`.
+//!
 //! ## Example
 //!
 //! ```
@@ -116,6 +119,14 @@
 //! | | `jitter`, `seed` | random offset of each copy, uniform in ±jitter m per axis (0), and its seed (0) |
 //! | | `material` | material index or name (0) |
 //! | | `fixed` | static geometry instead of a free body (false) |
+//! | `[[vehicle]]` | `multibody` | name of a floating `[[urdf]]` multibody to drive with [`crate::vehicle::Vehicle`] (required) |
+//! | | `front`, `rear` | hinge2 joints `[left, right]` (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
+//! | `[[vehicle.command]]` | `at` | simulated time (s) from which the command holds (required) |
+//! | | `speed` | throttle: target speed, m/s (releases the brakes) |
+//! | | `coast` | `true`: no drive torque, brakes released |
+//! | | `steering_deg` | bicycle-model steering angle, degrees, positive = left |
+//! | | `brake` | brakes on (`true`) or off (`false`) |
 //! | `[record]` | `every` | record one row every this many steps (1) |
 //! | | `multibodies` | names of the multibodies recorded (all) |
 //! | | `velocities`, `energy` | also record v, and the total energy (false) |
@@ -126,6 +137,7 @@ use crate::error::ModelError;
 use crate::io::urdf::{self, UrdfError, UrdfOptions};
 use crate::math::{Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape};
+use crate::vehicle::{Vehicle, VehicleConfig};
 use crate::world::{Servo, SolverKind, StepError, World, WorldOptions};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -270,7 +282,35 @@ pub struct Scene {
     pub record: RecordOptions,
     /// Things left out while loading (skipped meshes).
     pub warnings: Vec<String>,
+    /// Vehicles of `[[vehicle]]` entries with their timed commands.
+    pub vehicles: Vec<ScriptedVehicle>,
     source: Source,
+}
+
+/// One command of a `[[vehicle.command]]` entry: what changes at time `at`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TimedCommand {
+    /// Simulated time (s) from which the command holds.
+    pub at: f64,
+    /// New target speed (m/s), releasing the brakes.
+    pub speed: Option<f64>,
+    /// Coast: no drive torque, brakes released.
+    pub coast: bool,
+    /// New steering angle (rad, positive = left).
+    pub steering: Option<f64>,
+    /// Brakes on or off.
+    pub brake: Option<bool>,
+}
+
+/// A vehicle of a scene and its commands, sorted by time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScriptedVehicle {
+    /// The controller.
+    pub vehicle: Vehicle,
+    /// Commands, by increasing `at`.
+    pub commands: Vec<TimedCommand>,
+    /// Commands applied so far.
+    pub applied: usize,
 }
 
 impl fmt::Debug for Scene {
@@ -284,6 +324,7 @@ impl fmt::Debug for Scene {
             .field("integrator", &self.integrator)
             .field("recorded", &self.recorded)
             .field("record", &self.record)
+            .field("vehicles", &self.vehicles.len())
             .finish_non_exhaustive()
     }
 }
@@ -292,6 +333,31 @@ impl Scene {
     /// Index of the multibody called `name`.
     pub fn multibody(&self, name: &str) -> Option<usize> {
         (0..self.world.multibody_count()).find(|&i| self.world.multibody_name(i) == name)
+    }
+
+    /// Applies every vehicle command whose time has come (`at` ≤ the world's time plus half a
+    /// step), in order; [`run`] calls it before each step.
+    pub fn apply_controls(&mut self) -> Result<(), SceneError> {
+        let now = self.world.time() + 0.5 * self.world.options().dt;
+        for v in &mut self.vehicles {
+            while let Some(c) = v.commands.get(v.applied).copied().filter(|c| c.at <= now) {
+                let failed = |e: crate::vehicle::VehicleError| SceneError::Options(e.to_string());
+                if let Some(angle) = c.steering {
+                    v.vehicle.set_steering(&mut self.world, angle).map_err(failed)?;
+                }
+                if let Some(speed) = c.speed {
+                    v.vehicle.set_speed(&mut self.world, speed).map_err(failed)?;
+                }
+                if c.coast {
+                    v.vehicle.coast(&mut self.world);
+                }
+                if let Some(on) = c.brake {
+                    v.vehicle.set_brake(&mut self.world, on);
+                }
+                v.applied += 1;
+            }
+        }
+        Ok(())
     }
 
     /// Builds the scene again from its text: the world back at its initial state.
@@ -599,6 +665,7 @@ pub fn run(
     let mut reported = 0u64;
     for step in 1..=steps {
         let time = scene.world.time();
+        scene.apply_controls()?;
         let stats =
             scene.world.step().map_err(|source| SceneError::Step { step, time, source: Box::new(source) })?;
         summary.max_penetration = summary.max_penetration.max(stats.max_penetration);
@@ -936,7 +1003,35 @@ struct Document {
     urdf: Vec<Spanned<UrdfSection>>,
     #[serde(default)]
     body: Vec<Spanned<BodySection>>,
+    #[serde(default)]
+    vehicle: Vec<Spanned<VehicleSection>>,
     record: Option<Spanned<RecordSection>>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VehicleSection {
+    multibody: Spanned<String>,
+    front: Option<[String; 2]>,
+    rear: Option<[String; 2]>,
+    wheel_radius: Option<Positive>,
+    drive_torque: Option<Positive>,
+    brake_torque: Option<Positive>,
+    steering_gain: Option<Positive>,
+    steering_rate: Option<Positive>,
+    steering_torque: Option<Positive>,
+    #[serde(default)]
+    command: Vec<Spanned<CommandSection>>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CommandSection {
+    at: NonNegative,
+    speed: Option<Finite>,
+    coast: Option<bool>,
+    steering_deg: Option<Finite>,
+    brake: Option<bool>,
 }
 
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -1308,6 +1403,10 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
     for (i, body) in doc.body.iter().enumerate() {
         b.body(&mut world, i, body)?;
     }
+    let mut vehicles = Vec::new();
+    for v in &doc.vehicle {
+        vehicles.push(b.vehicle(&mut world, v)?);
+    }
 
     // Recording.
     let mut record = RecordOptions::default();
@@ -1340,6 +1439,7 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
         recorded,
         record,
         warnings,
+        vehicles,
         source,
     })
 }
@@ -1625,6 +1725,60 @@ impl Builder<'_> {
             }
         }
         Ok(())
+    }
+
+    fn vehicle(&self, world: &mut World, v: &Spanned<VehicleSection>) -> Result<ScriptedVehicle, SceneError> {
+        let span = v.span();
+        let v = v.get_ref();
+        let name = v.multibody.get_ref();
+        let index = (0..world.multibody_count())
+            .find(|&i| world.multibody_name(i) == name)
+            .ok_or_else(|| self.src.invalid(v.multibody.span(), format!("no multibody `{name}`")))?;
+        let defaults = VehicleConfig::buggy();
+        let config = VehicleConfig {
+            front: v.front.clone().unwrap_or(defaults.front),
+            rear: v.rear.clone().unwrap_or(defaults.rear),
+            wheel_radius: v.wheel_radius.map_or(defaults.wheel_radius, |x| x.0),
+            drive_torque: v.drive_torque.map_or(defaults.drive_torque, |x| x.0),
+            brake_torque: v.brake_torque.map_or(defaults.brake_torque, |x| x.0),
+            steering_gain: v.steering_gain.map_or(defaults.steering_gain, |x| x.0),
+            steering_rate: v.steering_rate.map_or(defaults.steering_rate, |x| x.0),
+            steering_torque: v.steering_torque.map_or(defaults.steering_torque, |x| x.0),
+        };
+        let vehicle = Vehicle::attach(world, index, config)
+            .map_err(|e| self.src.invalid(span.clone(), e.to_string()))?;
+        let mut commands = Vec::with_capacity(v.command.len());
+        for c in &v.command {
+            let cspan = c.span();
+            let c = c.get_ref();
+            if c.speed.is_none() && c.coast.is_none() && c.steering_deg.is_none() && c.brake.is_none() {
+                return Err(self.src.invalid(
+                    cspan,
+                    "a command sets at least one of `speed`, `coast`, `steering_deg`, `brake`",
+                ));
+            }
+            if c.speed.is_some() && c.coast == Some(true) {
+                return Err(self.src.invalid(cspan, "give `speed` or `coast = true`, not both"));
+            }
+            if let Some(deg) = c.steering_deg {
+                if deg.0.abs() >= 90.0 {
+                    return Err(self.src.invalid(
+                        cspan,
+                        format!("`steering_deg` must be between -90 and 90, got {}", deg.0),
+                    ));
+                }
+            }
+            commands.push(TimedCommand {
+                at: c.at.0,
+                speed: c.speed.map(|x| x.0),
+                coast: c.coast.unwrap_or(false),
+                steering: c.steering_deg.map(|x| x.0.to_radians()),
+                brake: c.brake,
+            });
+        }
+        // Stable: commands given for the same time apply in the order written.
+        commands.sort_by(|a, b| a.at.total_cmp(&b.at));
+        Ok(ScriptedVehicle { vehicle, commands, applied: 0 })
     }
 
     fn body(

@@ -130,6 +130,27 @@ impl ConstraintSolver for PgsSolver {
                             continue; // t2 is updated with t1.
                         }
                         let (o1, o2) = (lambda[t1], lambda[t2]);
+                        if problem.friction == FrictionModel::Cone {
+                            // Both tangents at once, exactly on the friction disc (see
+                            // `friction_block_step`): a fixed point then opposes slip.
+                            let (w1, w2) = (w(t1, lambda), w(t2, lambda));
+                            let g = [diag(t1), a[(t1, t2)], diag(t2)];
+                            if let Some((p1, p2)) = friction_block_step(
+                                [o1, o2],
+                                [w1, w2],
+                                g,
+                                lambda[nr].max(0.0),
+                                [block.mu, block.mu2],
+                                self.omega,
+                            ) {
+                                lambda[t1] = p1;
+                                lambda[t2] = p2;
+                                moved(t1, p1 - o1);
+                                moved(t2, p2 - o2);
+                                change = change.max(g[0] * (p1 - o1).abs()).max(g[2] * (p2 - o2).abs());
+                                continue;
+                            }
+                        }
                         lambda[t1] = o1 - self.omega * w(t1, lambda) / d;
                         moved(t1, lambda[t1] - o1);
                         let d2 = diag(t2);
@@ -166,6 +187,77 @@ impl ConstraintSolver for PgsSolver {
         self.workspace.dv = dv.into_inner();
         Ok(SolveInfo { iterations: sweeps, note: None })
     }
+}
+
+/// One block Gauss–Seidel step on a contact's two friction rows with the cone as the friction
+/// set: with `G` = [[g11, g12], [g12, g22]] the 2×2 block of A + R, `w` the rows' current
+/// velocities and `o` their impulses, the local problem is `min ½ λᵀGλ + (w − G o)ᵀλ` over the
+/// ellipse `(λ₁/μ₁)² + (λ₂/μ₂)² ≤ bound²`. The unconstrained minimiser `o − ω G⁻¹ w` is taken if
+/// inside; otherwise the boundary minimiser, where `G λ + c = −γ ∇` (γ ≥ 0): the new tangential
+/// velocity is opposite to the impulse in the scaled coordinates, i.e. maximum dissipation. The
+/// scalar-rows-then-radial-scaling update it replaces has fixed points that violate maximum
+/// dissipation when G is not isotropic (a wheel: light spin dof against a heavy chassis), which
+/// kept PGS from converging on turning vehicles. γ is found by Newton's method on the secular
+/// equation `1/‖s(γ)‖ = 1/bound` (Moré and Sorensen, 1983). `None` if G is singular.
+fn friction_block_step(
+    o: [f64; 2],
+    w: [f64; 2],
+    g: [f64; 3],
+    bound: f64,
+    mu: [f64; 2],
+    omega: f64,
+) -> Option<(f64, f64)> {
+    let [g11, g12, g22] = g;
+    let det = g11 * g22 - g12 * g12;
+    if !(det > 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE)) {
+        return None;
+    }
+    let free =
+        [o[0] - omega * (g22 * w[0] - g12 * w[1]) / det, o[1] - omega * (g11 * w[1] - g12 * w[0]) / det];
+    let scaled = |l: [f64; 2]| {
+        let s1 = if mu[0] > 0.0 { l[0] / mu[0] } else { 0.0 };
+        let s2 = if mu[1] > 0.0 { l[1] / mu[1] } else { 0.0 };
+        (s1, s2)
+    };
+    let (s1, s2) = scaled(free);
+    if s1.hypot(s2) <= bound {
+        return Some((mu[0] * s1, mu[1] * s2));
+    }
+    if bound <= 0.0 || mu[0] <= 0.0 || mu[1] <= 0.0 {
+        return Some((0.0, 0.0));
+    }
+    // In s = λ/μ: min ½ sᵀHs + dᵀs, ‖s‖ ≤ bound, with H = D G D, d = D (w − G o).
+    let (h11, h12, h22) = (mu[0] * mu[0] * g11, mu[0] * mu[1] * g12, mu[1] * mu[1] * g22);
+    let c = [w[0] - g11 * o[0] - g12 * o[1], w[1] - g12 * o[0] - g22 * o[1]];
+    let d = [mu[0] * c[0], mu[1] * c[1]];
+    let solve = |gamma: f64| {
+        let (a11, a22) = (h11 + gamma, h22 + gamma);
+        let det = a11 * a22 - h12 * h12;
+        let s = [-(a22 * d[0] - h12 * d[1]) / det, -(a11 * d[1] - h12 * d[0]) / det];
+        // ds/dγ = −(H + γI)⁻¹ s.
+        let ds = [-(a22 * s[0] - h12 * s[1]) / det, -(a11 * s[1] - h12 * s[0]) / det];
+        (s, ds)
+    };
+    let mut gamma: f64 = 0.0;
+    for _ in 0..30 {
+        let (s, ds) = solve(gamma);
+        let norm = s[0].hypot(s[1]);
+        if norm <= 0.0 {
+            break;
+        }
+        let phi = 1.0 / norm - 1.0 / bound;
+        if phi.abs() * bound < 1e-12 {
+            break;
+        }
+        let dphi = -(s[0] * ds[0] + s[1] * ds[1]) / norm.powi(3);
+        let next = gamma - phi / dphi;
+        gamma = if next.is_finite() { next.max(0.0) } else { break };
+    }
+    let (s, _) = solve(gamma);
+    // Land exactly on the boundary.
+    let norm = s[0].hypot(s[1]);
+    let k = if norm > 0.0 { bound / norm } else { 0.0 };
+    Some((mu[0] * s[0] * k, mu[1] * s[1] * k))
 }
 
 /// dv[blocks of row i] += δ · (M⁻¹Jᵀ)_i.
