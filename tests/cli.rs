@@ -118,3 +118,43 @@ fn inspect_warns_about_massless_subtree() {
     assert!(err.contains("warning") && err.contains("spin"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
+    let dir = std::env::temp_dir().join(format!("gelenk-report-{}", std::process::id()));
+    let out = gelenk(&[
+        "report",
+        "stability",
+        "--out",
+        dir.to_str().unwrap(),
+        "--cases",
+        "rolling_ball,cradle,fast_sphere",
+        "--solvers",
+        "lemke,pgs50",
+        "--dt",
+        "0.004166666666666667",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("stability.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], "case,solver,dt,pass,figure,seconds,detail");
+    assert_eq!(lines.len(), 1 + 3 * 2, "{csv}");
+    // The rolling ball passes with both solvers (5/7 g sin θ within 1 %); the 100 m/s sphere
+    // tunnels through the 2 cm wall at dt = 1/240 s (v·dt / (thickness + 2r) = 10.4).
+    for solver in ["lemke", "pgs50"] {
+        let row =
+            |case: &str| lines.iter().find(|l| l.starts_with(&format!("{case},{solver},"))).copied().unwrap();
+        assert!(row("rolling_ball").contains(",true,"), "{}", row("rolling_ball"));
+        let tunnel: Vec<&str> = row("fast_sphere").split(',').collect();
+        assert_eq!(tunnel[3], "false");
+        assert!((tunnel[4].parse::<f64>().unwrap() - 100.0 / 240.0 / 0.04).abs() < 1e-9);
+    }
+    let markdown = std::fs::read_to_string(dir.join("stability.md")).unwrap();
+    assert!(markdown.starts_with("| case | dt (s) | lemke | pgs50 |"), "{markdown}");
+    assert!(markdown.contains("| rolling_ball | 1/240 | pass"), "{markdown}");
+    std::fs::remove_dir_all(&dir).ok();
+
+    let bad = gelenk(&["report", "stability", "--cases", "no_such_case"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown case `no_such_case`"));
+}

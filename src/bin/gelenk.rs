@@ -93,10 +93,36 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Run a report and write its tables.
+    Report {
+        #[command(subcommand)]
+        what: ReportCommand,
+    },
     /// Time algorithms in-process (median over rounds, after warm-up).
     Bench {
         #[command(subcommand)]
         what: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum ReportCommand {
+    /// The hard-case suite (tests/hard_cases.rs) for every solver and time step: a pass/fail
+    /// table with the measured figure in each cell, as stability.md and stability.csv in DIR
+    /// (markdown on stdout without --out). Progress goes to stderr.
+    Stability {
+        /// Output directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Only these cases (comma-separated names; default: all).
+        #[arg(long, value_delimiter = ',')]
+        cases: Vec<String>,
+        /// Only these solvers (lemke, clarabel, pgsN; default: lemke, clarabel, pgs10, pgs50).
+        #[arg(long, value_delimiter = ',')]
+        solvers: Vec<String>,
+        /// Only these time steps in s (default: 1/60, 1/240, 1/1000).
+        #[arg(long, value_delimiter = ',')]
+        dt: Vec<f64>,
     },
 }
 
@@ -153,6 +179,9 @@ fn main() -> ExitCode {
         Command::SolveProblem { file, solver, json } => solve_problem(&file, &solver, json),
         Command::Simulate { scene, duration, dt, solver, out, json } => {
             simulate(&scene, duration, dt, solver.as_deref(), out.as_deref(), json)
+        }
+        Command::Report { what: ReportCommand::Stability { out, cases, solvers, dt } } => {
+            report_stability(out.as_deref(), &cases, &solvers, &dt)
         }
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
@@ -724,6 +753,65 @@ fn solve_problem(path: &Path, solver: &str, as_json: bool) -> Result<(), String>
             kind.name(),
             record.message.as_deref().unwrap_or("no solution")
         ));
+    }
+    Ok(())
+}
+
+fn report_stability(
+    out: Option<&Path>,
+    cases: &[String],
+    solvers: &[String],
+    dts: &[f64],
+) -> Result<(), String> {
+    use gelenk::report::stability;
+    let selected: Vec<stability::Case> = if cases.is_empty() {
+        stability::CASES.to_vec()
+    } else {
+        cases
+            .iter()
+            .map(|name| {
+                stability::case(name).copied().ok_or_else(|| {
+                    let known: Vec<&str> = stability::CASES.iter().map(|c| c.name).collect();
+                    format!("unknown case `{name}` (known: {})", known.join(", "))
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let solver_kinds: Vec<gelenk::world::SolverKind> = if solvers.is_empty() {
+        stability::SOLVERS.to_vec()
+    } else {
+        solvers
+            .iter()
+            .map(|name| {
+                gelenk::world::SolverKind::parse(name).ok_or_else(|| format!("unknown solver `{name}`"))
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let dts: Vec<f64> = if dts.is_empty() { stability::TIME_STEPS.to_vec() } else { dts.to_vec() };
+    if let Some(bad) = dts.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
+        return Err(format!("time step {bad} is not a positive number"));
+    }
+    let cells = stability::run(&selected, &solver_kinds, &dts, |cell| {
+        let status = match &cell.outcome {
+            None => "skipped".to_string(),
+            Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
+            Some(Err(e)) => format!("error: {e}"),
+        };
+        eprintln!(
+            "{:<15} {:<9} dt {:<9.6} {status} ({:.1} s)",
+            cell.case, cell.solver, cell.dt, cell.seconds
+        );
+    });
+    let markdown = stability::markdown(&cells, &selected);
+    match out {
+        None => print!("{markdown}"),
+        Some(dir) => {
+            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            for (name, text) in [("stability.md", markdown), ("stability.csv", stability::csv(&cells))] {
+                let path = dir.join(name);
+                std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+            }
+        }
     }
     Ok(())
 }

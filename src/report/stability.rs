@@ -1,0 +1,936 @@
+//! Numerical stability on hard cases: each [`Case`] is a scene plus a quantitative criterion,
+//! run through the [`World`] with one solver and one time step (a [`Setting`]) and returning
+//! the measured figure ([`Outcome`]). `tests/hard_cases.rs` asserts the criteria at chosen
+//! settings; [`run`] fills the table of every case × solver × dt that `gelenk report stability`
+//! writes as markdown and CSV — the same code measures both.
+//!
+//! The step is semi-implicit Euler. Two criteria of the issue need a better integrator and are
+//! measured here but documented as limits: the Dzhanibekov spin (energy and angular momentum to
+//! 1e-6) and the four-bar's energy drift; the 100-link chain with a 1000:1 end mass
+//! (|ΔE/E| < 1e-6) is left for the RK4 integrator and is not a case yet.
+
+use crate::collision::MeshOptions;
+use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
+use crate::math::{axis_angle, Mat3, Transform, Vec3};
+use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape, Suspension};
+use crate::world::{SolverKind, StepError, World, WorldOptions};
+use nalgebra::{DVector, UnitQuaternion};
+
+/// One solver (alone in the chain, its answer always accepted) and one time step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Setting {
+    /// The solver.
+    pub solver: SolverKind,
+    /// Time step (s).
+    pub dt: f64,
+}
+
+impl Setting {
+    /// Short solver label: `lemke`, `clarabel`, `pgs10`, `pgs50`.
+    pub fn solver_label(&self) -> String {
+        match self.solver {
+            SolverKind::Lemke { .. } => "lemke".into(),
+            SolverKind::Clarabel => "clarabel".into(),
+            SolverKind::Pgs { iterations, .. } => format!("pgs{iterations}"),
+        }
+    }
+}
+
+/// The solvers of the report: Lemke (8-facet pyramid), clarabel, PGS with 10 and 50 sweeps.
+pub const SOLVERS: [SolverKind; 4] = [
+    SolverKind::Lemke { facets: 8 },
+    SolverKind::Clarabel,
+    SolverKind::Pgs { iterations: 10, omega: 1.0 },
+    SolverKind::Pgs { iterations: 50, omega: 1.0 },
+];
+
+/// The time steps of the report (s).
+pub const TIME_STEPS: [f64; 3] = [1.0 / 60.0, 1.0 / 240.0, 1.0 / 1000.0];
+
+/// What a case measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// The measured figure (in the case's unit).
+    pub figure: f64,
+    /// Whether the criterion holds.
+    pub pass: bool,
+    /// Secondary figures and observations (e.g. the cradle's final velocities).
+    pub detail: String,
+}
+
+/// A hard case: a scene and its criterion.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    /// Identifier (`stack10`, `cradle`, ...).
+    pub name: &'static str,
+    /// The criterion, in words, with its bound.
+    pub criterion: &'static str,
+    /// What [`Outcome::figure`] is.
+    pub figure: &'static str,
+    /// Whether Lemke's dense tableau is affordable (false: the report skips Lemke).
+    pub lemke: bool,
+    /// Runs the case.
+    pub run: fn(&Setting) -> Result<Outcome, StepError>,
+}
+
+/// Every case, in report order.
+pub const CASES: [Case; 15] = [
+    Case {
+        name: "stack10",
+        criterion: "10 boxes, 10 s: top drift < 1 % of the box (1 mm), penetration < margin",
+        figure: "top drift (m)",
+        lemke: true,
+        run: stack10,
+    },
+    Case {
+        name: "stack20",
+        criterion: "20 boxes, 10 s: top drift < 1 mm, penetration < margin",
+        figure: "top drift (m)",
+        lemke: false,
+        run: stack20,
+    },
+    Case {
+        name: "pyramid10",
+        criterion: "pyramid of 55 boxes (base 10), 2 s: top drift < 1 mm, penetration < margin",
+        figure: "top drift (m)",
+        lemke: false,
+        run: pyramid10,
+    },
+    Case {
+        name: "heavy_on_light",
+        criterion: "1000 kg box on a 1 kg box, 5 s: drift < 1 mm, penetration < margin",
+        figure: "top drift (m)",
+        lemke: true,
+        run: heavy_on_light,
+    },
+    Case {
+        name: "cradle",
+        criterion: "Newton's cradle, 5 balls, ε = 1: |Δp| < 1e-12, energy never grows",
+        figure: "|Δp| (kg·m/s)",
+        lemke: true,
+        run: cradle,
+    },
+    Case {
+        name: "dzhanibekov",
+        criterion: "T-body at ω = (10, 1, 0) rad/s, 10 s: |ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 %",
+        figure: "max(|ΔL|/L, |ΔE|/E)",
+        lemke: true,
+        run: dzhanibekov,
+    },
+    Case {
+        name: "four_bar",
+        criterion: "four-bar, 10 s: closure < 1e-8 m, |ΔE| < 1e-4 of the largest kinetic energy",
+        figure: "closure error (m)",
+        lemke: true,
+        run: four_bar,
+    },
+    Case {
+        name: "suspension",
+        criterion: "hinge2 suspension, k·dt²/m = 1e-2 … 1e4: amplitude never grows",
+        figure: "max |s − s₀| / |s₀|",
+        lemke: true,
+        run: suspension,
+    },
+    Case {
+        name: "ramp5",
+        criterion: "five boxes on a 20° ramp, μ = 0.25 … 0.5: stick iff μ ≥ tan θ (sliders within 5 %)",
+        figure: "boxes right (of 5)",
+        lemke: true,
+        run: ramp5,
+    },
+    Case {
+        name: "rolling_ball",
+        criterion: "ball on a 20° incline, μ = 0.3: a = (5/7) g sin θ ± 1 %",
+        figure: "relative error of a",
+        lemke: true,
+        run: rolling_ball,
+    },
+    Case {
+        name: "sliding_box",
+        criterion: "box at 2 m/s, μ = 0.5: stops after v₀²/(2μg) ± 2 %",
+        figure: "relative error of the distance",
+        lemke: true,
+        run: sliding_box,
+    },
+    Case {
+        name: "resting",
+        criterion: "box resting on the ground, 10 s: |v| < 1e-6 m/s",
+        figure: "max |v| (m/s)",
+        lemke: true,
+        run: resting,
+    },
+    Case {
+        name: "fast_sphere",
+        criterion: "1 cm sphere at 100 m/s against a 2 cm wall: does not tunnel",
+        figure: "v·dt / (thickness + 2r)",
+        lemke: true,
+        run: fast_sphere,
+    },
+    Case {
+        name: "far_origin",
+        criterion: "ball thrown with spin at a (1e6, 1e6, 1e6) m offset = at the origin within 1e-6 relative",
+        figure: "relative difference",
+        lemke: true,
+        run: far_origin,
+    },
+    Case {
+        name: "determinism",
+        criterion: "5 tumbling boxes: state hash after 1000 steps identical in two runs",
+        figure: "runs differing (0/1)",
+        lemke: true,
+        run: determinism,
+    },
+];
+
+/// The case named `name`.
+pub fn case(name: &str) -> Option<&'static Case> {
+    CASES.iter().find(|c| c.name == name)
+}
+
+/// World options of a setting: that solver alone (its answer accepted even above the
+/// tolerance, so that the cell measures the solver, not a fallback), sleeping off.
+pub fn options(setting: &Setting) -> WorldOptions {
+    let mut o = WorldOptions {
+        dt: setting.dt,
+        solvers: vec![setting.solver],
+        tolerance: 1e-8,
+        accept_last: true,
+        ..Default::default()
+    };
+    o.sleep.enabled = false;
+    o
+}
+
+fn steps(duration: f64, dt: f64) -> usize {
+    (duration / dt).round() as usize
+}
+
+/// A lone rigid body: a free joint and one collision shape.
+pub fn free_body(name: &str, shape: Shape, inertia: RigidInertia) -> Model {
+    let mut b = ModelBuilder::new();
+    b.add_body(
+        BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
+            .with_collision(shape, Transform::identity()),
+    );
+    b.build().expect("a lone free body is a valid model")
+}
+
+fn cube(side: f64, mass: f64) -> Model {
+    let size = Vec3::repeat(side);
+    free_body("box", Shape::Box { size }, RigidInertia::solid_box(mass, size))
+}
+
+fn ball(radius: f64, mass: f64) -> Model {
+    free_body("ball", Shape::Sphere { radius }, RigidInertia::solid_sphere(mass, radius))
+}
+
+fn add(w: &mut World, name: &str, model: Model) -> Result<usize, StepError> {
+    w.add_multibody(name, model, &MeshOptions::default())
+}
+
+/// Writes position `p` and rotation `r` into a free multibody's q.
+fn place(w: &mut World, m: usize, p: Vec3, r: UnitQuaternion<f64>) {
+    let q = &mut w.multibody_mut(m).state.q;
+    q.rows_mut(0, 3).copy_from(&p);
+    q.rows_mut(3, 4).copy_from_slice(&[r.i, r.j, r.k, r.w]);
+}
+
+fn position(w: &World, m: usize) -> Vec3 {
+    w.multibody(m).state.q.fixed_rows::<3>(0).into()
+}
+
+fn rotation(q: &DVector<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]))
+}
+
+fn ground(options: WorldOptions, normal: Vec3) -> Result<World, StepError> {
+    let mut w = World::new(options);
+    w.add_static("ground", &Shape::HalfSpace { normal }, Transform::identity(), 0)?;
+    Ok(w)
+}
+
+/// Steps a world whose `watched` multibody should stay put: the largest displacement of its
+/// origin from the start (m) and the deepest penetration seen (m).
+fn hold(w: &mut World, watched: usize, n: usize) -> Result<(f64, f64), StepError> {
+    let start = position(w, watched);
+    let (mut drift, mut depth) = (0.0f64, 0.0f64);
+    for _ in 0..n {
+        depth = depth.max(w.step()?.max_penetration);
+        drift = drift.max((position(w, watched) - start).norm());
+    }
+    Ok((drift, depth))
+}
+
+fn held(drift: f64, depth: f64, margin: f64, size: f64) -> Outcome {
+    Outcome {
+        figure: drift,
+        pass: drift < 0.01 * size && depth < margin,
+        detail: format!("penetration {depth:.2e} m (margin {margin} m)"),
+    }
+}
+
+fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepError> {
+    let side = 0.1;
+    let o = options(setting);
+    let margin = o.collision.margin;
+    let mut w = ground(o, Vec3::z())?;
+    let mut top = 0;
+    for k in 0..count {
+        top = add(&mut w, &format!("box{k}"), cube(side, 1.0))?;
+        place(&mut w, top, Vec3::new(0.0, 0.0, side / 2.0 + side * k as f64), UnitQuaternion::identity());
+    }
+    let (drift, depth) = hold(&mut w, top, steps(10.0, setting.dt))?;
+    Ok(held(drift, depth, margin, side))
+}
+
+fn stack10(setting: &Setting) -> Result<Outcome, StepError> {
+    stack(setting, 10)
+}
+
+fn stack20(setting: &Setting) -> Result<Outcome, StepError> {
+    stack(setting, 20)
+}
+
+fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
+    let (side, gap) = (0.1, 0.002);
+    let o = options(setting);
+    let margin = o.collision.margin;
+    let mut w = ground(o, Vec3::z())?;
+    let mut top = 0;
+    for row in 0..10 {
+        for k in 0..10 - row {
+            let x = (k as f64 - (9 - row) as f64 / 2.0) * (side + gap);
+            top = add(&mut w, &format!("box{row}_{k}"), cube(side, 1.0))?;
+            place(&mut w, top, Vec3::new(x, 0.0, side / 2.0 + side * row as f64), UnitQuaternion::identity());
+        }
+    }
+    let (drift, depth) = hold(&mut w, top, steps(2.0, setting.dt))?;
+    Ok(held(drift, depth, margin, side))
+}
+
+fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
+    let side = 0.1;
+    let o = options(setting);
+    let margin = o.collision.margin;
+    let mut w = ground(o, Vec3::z())?;
+    let light = add(&mut w, "light", cube(side, 1.0))?;
+    place(&mut w, light, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
+    let heavy = add(&mut w, "heavy", cube(side, 1000.0))?;
+    place(&mut w, heavy, Vec3::new(0.0, 0.0, 1.5 * side), UnitQuaternion::identity());
+    let (drift, depth) = hold(&mut w, heavy, steps(5.0, setting.dt))?;
+    Ok(held(drift, depth, margin, side))
+}
+
+fn cradle(setting: &Setting) -> Result<Outcome, StepError> {
+    // Five balls in a row without gravity: four touching, the first 5 cm away at 1 m/s, so
+    // that its impact meets the touching four at once (a simultaneous impact).
+    let mut o = options(setting);
+    o.gravity = Vec3::zeros();
+    o.contact =
+        ContactParameters { mu: 0.0, restitution: 1.0, bounce_velocity: 0.0, erp: 0.0, ..Default::default() };
+    let mut w = World::new(o);
+    let r = 0.05;
+    for k in 0..5 {
+        let m = add(&mut w, &format!("ball{k}"), ball(r, 1.0))?;
+        let x = if k == 0 { -0.05 } else { 2.0 * r * k as f64 };
+        place(&mut w, m, Vec3::new(x, 0.0, 0.0), UnitQuaternion::identity());
+    }
+    w.multibody_mut(0).state.v[0] = 1.0;
+    let (p0, e0) = (w.linear_momentum(), w.total_energy());
+    let (mut dp, mut de) = (0.0f64, f64::NEG_INFINITY);
+    for _ in 0..steps(0.5, setting.dt) {
+        w.step()?;
+        dp = dp.max((w.linear_momentum() - p0).norm());
+        de = de.max((w.total_energy() - e0) / e0);
+    }
+    let v: Vec<String> = (0..5).map(|k| format!("{:.3}", w.multibody(k).state.v[0])).collect();
+    Ok(Outcome {
+        figure: dp,
+        pass: dp < 1e-12 && de <= 1e-12,
+        detail: format!("final v = [{}] m/s, max ΔE/E = {de:.1e}", v.join(", ")),
+    })
+}
+
+/// Principal inertia (kg·m², about the centre of mass) of the T-shaped body: a 0.4 m bar along
+/// x and a 0.3 m stem along −z, 5 cm square sections, 1 kg each, centre of mass at the origin.
+/// x is the intermediate axis (Ixx = 0.0234, Iyy = 0.0366, Izz = 0.0140).
+pub fn t_body_inertia() -> Mat3 {
+    let offset: f64 = 0.0875; // each part's centre is 8.75 cm from the joint centre of mass
+    let bar = Vec3::new(
+        0.05f64.powi(2) + 0.05f64.powi(2),
+        0.4f64.powi(2) + 0.05f64.powi(2),
+        0.4f64.powi(2) + 0.05f64.powi(2),
+    ) / 12.0;
+    let stem = Vec3::new(
+        0.05f64.powi(2) + 0.3f64.powi(2),
+        0.05f64.powi(2) + 0.3f64.powi(2),
+        0.05f64.powi(2) + 0.05f64.powi(2),
+    ) / 12.0;
+    let shift = Vec3::new(2.0 * offset * offset, 2.0 * offset * offset, 0.0);
+    Mat3::from_diagonal(&(bar + stem + shift))
+}
+
+/// Half the time between sign changes of ω_x, i.e. the flip period (s), from Euler's equations
+/// `I ω̇ = I ω × ω` integrated by RK4 at 1e-5 s (the reference of the Dzhanibekov case).
+pub fn dzhanibekov_reference_period(inertia: &Mat3, omega: Vec3, duration: f64) -> Option<f64> {
+    let inverse = inertia.try_inverse()?;
+    let f = |w: &Vec3| inverse * (inertia * w).cross(w);
+    let h = 1e-5;
+    let mut w = omega;
+    let mut crossings = Vec::new();
+    for k in 0..(duration / h) as usize {
+        let k1 = f(&w);
+        let k2 = f(&(w + k1 * (h / 2.0)));
+        let k3 = f(&(w + k2 * (h / 2.0)));
+        let k4 = f(&(w + k3 * h));
+        let next = w + (k1 + k2 * 2.0 + k3 * 2.0 + k4) * (h / 6.0);
+        if next.x.signum() != w.x.signum() {
+            crossings.push((k as f64 + w.x / (w.x - next.x)) * h);
+        }
+        w = next;
+    }
+    flip_period(&crossings)
+}
+
+/// The flip period from the times ω_x changes sign: twice the mean interval.
+fn flip_period(crossings: &[f64]) -> Option<f64> {
+    (crossings.len() >= 2)
+        .then(|| 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64)
+}
+
+fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
+    let inertia = t_body_inertia();
+    let omega0 = Vec3::new(10.0, 1.0, 0.0);
+    let duration = 10.0;
+    let mut o = options(setting);
+    o.gravity = Vec3::zeros();
+    let mut w = World::new(o);
+    let m = add(
+        &mut w,
+        "T",
+        free_body("T", Shape::Sphere { radius: 0.01 }, RigidInertia::new(2.0, Vec3::zeros(), inertia)),
+    )?;
+    w.multibody_mut(m).state.v.rows_mut(3, 3).copy_from(&omega0);
+    let angular = |w: &World| -> (Vec3, f64, f64) {
+        let s = &w.multibody(m).state;
+        let omega: Vec3 = s.v.fixed_rows::<3>(3).into();
+        (rotation(&s.q) * (inertia * omega), 0.5 * omega.dot(&(inertia * omega)), omega.x)
+    };
+    let (l0, e0, _) = angular(&w);
+    let (mut dl, mut de) = (0.0f64, 0.0f64);
+    let mut crossings = Vec::new();
+    let mut last = omega0.x;
+    for k in 0..steps(duration, setting.dt) {
+        w.step()?;
+        let (l, e, wx) = angular(&w);
+        dl = dl.max((l - l0).norm() / l0.norm());
+        de = de.max((e - e0).abs() / e0);
+        if wx.signum() != last.signum() {
+            crossings.push((k as f64 + last / (last - wx)) * setting.dt);
+        }
+        last = wx;
+    }
+    let reference = dzhanibekov_reference_period(&inertia, omega0, duration);
+    let period = flip_period(&crossings);
+    let period_error = match (period, reference) {
+        (Some(p), Some(r)) => (p - r).abs() / r,
+        _ => f64::INFINITY,
+    };
+    let figure = dl.max(de);
+    Ok(Outcome {
+        figure,
+        pass: figure < 1e-6 && period_error < 0.01,
+        detail: format!(
+            "|ΔL|/L {dl:.1e}, |ΔE|/E {de:.1e}, flip period {} s vs {} s (error {period_error:.1e})",
+            period.map_or("none".into(), |p| format!("{p:.4}")),
+            reference.map_or("none".into(), |p| format!("{p:.4}")),
+        ),
+    })
+}
+
+/// The four-bar linkage of `tests/world.rs`: crank a = 0.15 m from the origin, coupler b =
+/// 0.35 m, rocker c = 0.30 m (a chain of three y-hinges) whose tip is closed by a hinge loop
+/// joint to the world point (d, 0, 0), d = 0.40 m; 1 kg rods. Returns the world and the
+/// multibody index, at the closed configuration with crank angle 1 rad.
+pub fn four_bar_world(options: WorldOptions) -> Result<(World, usize), StepError> {
+    let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
+    let rod = |name: &str, parent: &str, x: f64, length: f64| {
+        let i = length * length / 12.0;
+        let inertia = RigidInertia::new(
+            1.0,
+            Vec3::new(length / 2.0, 0.0, 0.0),
+            Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
+        );
+        BodySpec::new(
+            name,
+            parent,
+            Joint::hinge(Vec3::y()),
+            Transform::from_translation(Vec3::new(x, 0.0, 0.0)),
+            inertia,
+        )
+    };
+    let mut builder = ModelBuilder::new();
+    builder.add_body(rod("crank", "universe", 0.0, a));
+    builder.add_body(rod("coupler", "crank", a, b));
+    builder.add_body(rod("rocker", "coupler", b, c));
+    let model = builder.build().expect("the four-bar is a valid model");
+    // Closed configuration in 2-D coordinates (x, −z): a body turned by φ points along (cos φ, sin φ).
+    let phi1: f64 = 1.0;
+    let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
+    let o2 = nalgebra::Vector2::new(d, 0.0);
+    let dist = (o2 - p).norm();
+    let u = (o2 - p) / dist;
+    let l = (b * b - c * c + dist * dist) / (2.0 * dist);
+    let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
+    let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
+    let phi3 = (o2.y - tip.y).atan2(o2.x - tip.x);
+    let mut w = World::new(options);
+    let m = add(&mut w, "four-bar", model)?;
+    w.add_loop(
+        m,
+        LoopClosure {
+            body_a: 3,
+            frame_a: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
+            body_b: 0,
+            frame_b: Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
+            kind: LoopKind::Hinge { axis: Vec3::y() },
+            erp: 0.2,
+        },
+    )?;
+    let q = &mut w.multibody_mut(m).state.q;
+    q[0] = phi1;
+    q[1] = phi2 - phi1;
+    q[2] = phi3 - phi2;
+    Ok((w, m))
+}
+
+fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
+    let (mut w, m) = four_bar_world(options(setting))?;
+    let e0 = w.total_energy();
+    let (mut closure, mut de, mut kinetic) = (0.0f64, 0.0f64, 0.0f64);
+    for _ in 0..steps(10.0, setting.dt) {
+        w.step()?;
+        closure = closure.max(w.constraint_violation());
+        let e = w.total_energy();
+        de = de.max((e - e0).abs());
+        let b = w.multibody(m);
+        let v = b.state.v.clone();
+        kinetic = kinetic.max(0.5 * v.dot(&(&b.data().mass_matrix * &v)));
+    }
+    let relative = de / kinetic.max(f64::MIN_POSITIVE);
+    Ok(Outcome {
+        figure: closure,
+        pass: closure < 1e-8 && relative < 1e-4,
+        detail: format!("|ΔE| = {relative:.1e} of the largest kinetic energy ({kinetic:.3} J)"),
+    })
+}
+
+fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
+    let mass = 10.0;
+    let mut worst = 0.0f64;
+    let mut details = Vec::new();
+    for ratio in [1e-2, 1.0, 1e2, 1e4] {
+        let k = ratio * mass / (setting.dt * setting.dt);
+        let joint = Joint::Hinge2 {
+            axis1: Vec3::z(),
+            axis2: Vec3::y(),
+            suspension: Some(Suspension { stiffness: k, damping: 0.0 }),
+        };
+        let mut b = ModelBuilder::new();
+        b.add_body(BodySpec::new(
+            "wheel",
+            "universe",
+            joint,
+            Transform::identity(),
+            RigidInertia::solid_sphere(mass, 0.3),
+        ));
+        let mut w = World::new(options(setting));
+        let m = add(&mut w, "wheel", b.build().expect("a hinge2 wheel is a valid model"))?;
+        let rest = -mass * 9.81 / k;
+        let mut amplitude = 0.0f64;
+        for _ in 0..steps(2.0, setting.dt) {
+            w.step()?;
+            amplitude = amplitude.max((w.multibody(m).state.q[0] - rest).abs());
+        }
+        let growth = amplitude / rest.abs();
+        details.push(format!("{ratio:.0e}: {growth:.3}"));
+        worst = worst.max(growth);
+    }
+    Ok(Outcome {
+        figure: worst,
+        // Released at s = 0, the undamped spring oscillates about s₀ with amplitude |s₀|; an
+        // implicit step may damp it but must never amplify it.
+        pass: worst <= 1.0 + 1e-9,
+        detail: format!("per k·dt²/m: {}", details.join(", ")),
+    })
+}
+
+fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
+    let theta: f64 = 20f64.to_radians();
+    let side = 0.1;
+    let mus = [0.25, 0.33, 0.35, 0.40, 0.50];
+    let normal = axis_angle(&Vec3::y(), theta) * Vec3::z();
+    let down = Vec3::new(theta.cos(), 0.0, -theta.sin());
+    let mut w = ground(options(setting), normal)?;
+    let tilt = UnitQuaternion::from_axis_angle(&Vec3::y_axis(), theta);
+    let mut starts = Vec::new();
+    for (k, mu) in mus.iter().enumerate() {
+        let m = add(&mut w, &format!("box{k}"), cube(side, 1.0))?;
+        let material = k as u32 + 1;
+        for &c in w.collision().colliders_of(m).to_vec().iter() {
+            w.collision_mut().set_material(c, material);
+        }
+        w.set_pair_parameters(material, 0, ContactParameters { mu: *mu, ..Default::default() });
+        let p = normal * (side / 2.0) + Vec3::y() * (0.3 * k as f64);
+        place(&mut w, m, p, tilt);
+        starts.push(p);
+    }
+    let duration = 1.0;
+    for _ in 0..steps(duration, setting.dt) {
+        w.step()?;
+    }
+    let mut right = 0;
+    let mut moved = Vec::new();
+    for (k, mu) in mus.iter().enumerate() {
+        let d = (position(&w, k) - starts[k]).dot(&down);
+        let expected = if *mu >= theta.tan() {
+            0.0
+        } else {
+            0.5 * 9.81 * (theta.sin() - mu * theta.cos()) * duration * duration
+        };
+        let ok = if expected == 0.0 { d.abs() < 1e-3 } else { (d - expected).abs() < 0.05 * expected };
+        right += usize::from(ok);
+        moved.push(format!("μ {mu}: {d:.4} m (expected {expected:.4})"));
+    }
+    Ok(Outcome { figure: right as f64, pass: right == mus.len(), detail: moved.join("; ") })
+}
+
+/// A ball of radius 0.1 m released on a 20° incline with friction μ: the acceleration of its
+/// centre along the slope (m/s², least-squares fit of s(t) over 1 s) and the largest slip speed.
+pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), StepError> {
+    let theta: f64 = 20f64.to_radians();
+    let mut o = options(setting);
+    o.contact = ContactParameters { mu, ..Default::default() };
+    let normal = axis_angle(&Vec3::y(), theta) * Vec3::z();
+    let down = Vec3::new(theta.cos(), 0.0, -theta.sin());
+    let mut w = ground(o, normal)?;
+    let r = 0.1;
+    let m = add(&mut w, "ball", ball(r, 1.0))?;
+    place(&mut w, m, normal * r, UnitQuaternion::identity());
+    let x0 = position(&w, m);
+    let (mut normal_matrix, mut rhs, mut slip) = (Mat3::zeros(), Vec3::zeros(), 0.0f64);
+    for k in 1..=steps(1.0, setting.dt) {
+        w.step()?;
+        let t = k as f64 * setting.dt;
+        let s = (position(&w, m) - x0).dot(&down);
+        let basis = Vec3::new(1.0, t, 0.5 * t * t);
+        normal_matrix += basis * basis.transpose();
+        rhs += basis * s;
+        let st = &w.multibody(m).state;
+        let (v, omega): (Vec3, Vec3) = (st.v.fixed_rows::<3>(0).into(), st.v.fixed_rows::<3>(3).into());
+        let n_local = rotation(&st.q).inverse() * normal;
+        slip = slip.max((v + omega.cross(&(-n_local * r))).norm());
+    }
+    let a = normal_matrix.cholesky().map_or(f64::NAN, |c| c.solve(&rhs)[2]);
+    Ok((a, slip))
+}
+
+fn rolling_ball(setting: &Setting) -> Result<Outcome, StepError> {
+    let (a, slip) = ball_on_incline(setting, 0.3)?;
+    let expected = 5.0 / 7.0 * 9.81 * 20f64.to_radians().sin();
+    let error = (a - expected).abs() / expected;
+    Ok(Outcome {
+        figure: error,
+        pass: error < 0.01,
+        detail: format!("a = {a:.4} m/s² (expected {expected:.4}), slip ≤ {slip:.1e} m/s"),
+    })
+}
+
+/// Distance (m) a 0.2 m box launched at `v0` m/s slides on the ground with μ = 0.5, and its
+/// largest height above its resting height while sliding (m: the convex relaxation's "hover").
+pub fn sliding_distance(setting: &Setting, v0: f64) -> Result<(f64, f64), StepError> {
+    let mut o = options(setting);
+    o.contact = ContactParameters { mu: 0.5, ..Default::default() };
+    let mut w = ground(o, Vec3::z())?;
+    let side = 0.2;
+    let m = add(&mut w, "box", cube(side, 1.0))?;
+    place(&mut w, m, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
+    for _ in 0..steps(0.05, setting.dt) {
+        w.step()?;
+    }
+    let start = position(&w, m);
+    w.multibody_mut(m).state.v[0] = v0;
+    let mut hover = 0.0f64;
+    for _ in 0..steps(3.0, setting.dt) {
+        w.step()?;
+        hover = hover.max(position(&w, m).z - start.z);
+    }
+    Ok((position(&w, m).x - start.x, hover))
+}
+
+fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
+    let v0 = 2.0;
+    let (d, hover) = sliding_distance(setting, v0)?;
+    let expected = v0 * v0 / (2.0 * 0.5 * 9.81);
+    let error = (d - expected).abs() / expected;
+    Ok(Outcome {
+        figure: error,
+        pass: error < 0.02,
+        detail: format!("distance {d:.4} m (expected {expected:.4}), rose {hover:.1e} m while sliding"),
+    })
+}
+
+fn resting(setting: &Setting) -> Result<Outcome, StepError> {
+    let mut w = ground(options(setting), Vec3::z())?;
+    let side = 0.2;
+    let m = add(&mut w, "box", cube(side, 1.0))?;
+    place(&mut w, m, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
+    let mut speed = 0.0f64;
+    for _ in 0..steps(10.0, setting.dt) {
+        w.step()?;
+        speed = speed.max(w.multibody(m).state.v.norm());
+    }
+    Ok(Outcome { figure: speed, pass: speed < 1e-6, detail: String::new() })
+}
+
+/// A sphere of radius `r` (m) at `speed` m/s against a static wall `thickness` m thick (its
+/// near face 1 m ahead); whether it ends beyond the wall.
+pub fn tunnels(setting: &Setting, speed: f64, r: f64, thickness: f64) -> Result<bool, StepError> {
+    let mut o = options(setting);
+    o.gravity = Vec3::zeros();
+    o.contact = ContactParameters { mu: 0.0, ..Default::default() };
+    let mut w = World::new(o);
+    w.add_static(
+        "wall",
+        &Shape::Box { size: Vec3::new(thickness, 1.0, 1.0) },
+        Transform::from_translation(Vec3::new(1.0 + thickness / 2.0, 0.0, 0.0)),
+        0,
+    )?;
+    let m = add(&mut w, "ball", ball(r, 0.01))?;
+    w.multibody_mut(m).state.v[0] = speed;
+    for _ in 0..steps(0.05, setting.dt).max(2) {
+        w.step()?;
+    }
+    Ok(position(&w, m).x > 1.0 + thickness / 2.0)
+}
+
+fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
+    let (speed, r, thickness) = (100.0, 0.01, 0.02);
+    let through = tunnels(setting, speed, r, thickness)?;
+    let ratio = speed * setting.dt / (thickness + 2.0 * r);
+    Ok(Outcome {
+        figure: ratio,
+        pass: !through,
+        detail: if through { "tunnels".into() } else { "stopped".into() },
+    })
+}
+
+/// The far-from-origin scene at `offset`: a ball thrown along the ground with back-spin (it
+/// slides, then rolls; one contact, so the answer is unique — a box's four coplanar corners
+/// share friction non-uniquely, and 1e-10 m rounding at 1e6 m then picks another share). Its
+/// trajectory relative to the offset (position and quaternion per step).
+fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, StepError> {
+    let mut w = World::new(options(setting));
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::from_translation(offset), 0)?;
+    let r = 0.1;
+    let m = add(&mut w, "ball", ball(r, 1.0))?;
+    place(&mut w, m, offset + Vec3::new(0.0, 0.0, r), UnitQuaternion::identity());
+    {
+        let v = &mut w.multibody_mut(m).state.v;
+        v[0] = 1.0;
+        v[1] = 0.5;
+        v[4] = -5.0;
+        v[5] = 3.0;
+    }
+    let mut out = Vec::new();
+    for _ in 0..steps(1.0, setting.dt) {
+        w.step()?;
+        let q = &w.multibody(m).state.q;
+        let p = Vec3::new(q[0], q[1], q[2]) - offset;
+        out.push([p.x, p.y, p.z, q[3], q[4], q[5], q[6]]);
+    }
+    Ok(out)
+}
+
+fn far_origin(setting: &Setting) -> Result<Outcome, StepError> {
+    let near = far_run(setting, Vec3::zeros())?;
+    let far = far_run(setting, Vec3::repeat(1e6))?;
+    let travel = near.iter().map(|s| Vec3::new(s[0], s[1], s[2] - near[0][2]).norm()).fold(0.0, f64::max);
+    let mut worst = 0.0f64;
+    for (a, b) in near.iter().zip(&far) {
+        let dp = Vec3::new(a[0] - b[0], a[1] - b[1], a[2] - b[2]).norm() / travel;
+        let dq = (0..4).map(|k| (a[3 + k] - b[3 + k]).powi(2)).sum::<f64>().sqrt();
+        worst = worst.max(dp).max(dq);
+    }
+    Ok(Outcome { figure: worst, pass: worst < 1e-6, detail: format!("travel {travel:.3} m") })
+}
+
+/// FNV-1a hash of every multibody's q and v bits.
+pub fn state_hash(w: &World) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for m in 0..w.multibody_count() {
+        let s = &w.multibody(m).state;
+        for x in s.q.iter().chain(s.v.iter()) {
+            for byte in x.to_bits().to_le_bytes() {
+                hash ^= u64::from(byte);
+                hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+    }
+    hash
+}
+
+/// Five boxes dropped tumbling onto the ground and onto each other: the state hash after 1000
+/// steps.
+pub fn tumbling_hash(setting: &Setting) -> Result<u64, StepError> {
+    let mut w = ground(options(setting), Vec3::z())?;
+    for k in 0..5 {
+        let m = add(&mut w, &format!("box{k}"), cube(0.1, 0.5))?;
+        let r = UnitQuaternion::from_scaled_axis(Vec3::new(0.3, 0.2 * k as f64, 0.1));
+        place(&mut w, m, Vec3::new(0.03 * k as f64, -0.02 * k as f64, 0.08 + 0.12 * k as f64), r);
+    }
+    for _ in 0..1000 {
+        w.step()?;
+    }
+    Ok(state_hash(&w))
+}
+
+fn determinism(setting: &Setting) -> Result<Outcome, StepError> {
+    let (a, b) = (tumbling_hash(setting)?, tumbling_hash(setting)?);
+    Ok(Outcome { figure: f64::from(u8::from(a != b)), pass: a == b, detail: format!("hash {a:016x}") })
+}
+
+/// One cell of the report.
+#[derive(Clone, Debug)]
+pub struct Cell {
+    /// Case name.
+    pub case: &'static str,
+    /// Solver label.
+    pub solver: String,
+    /// Time step (s).
+    pub dt: f64,
+    /// The outcome, `None` when skipped (Lemke on large problems), or the step error.
+    pub outcome: Option<Result<Outcome, String>>,
+    /// Wall-clock seconds the cell took.
+    pub seconds: f64,
+}
+
+/// Runs `cases` for every solver of `solvers` and time step of `dts`, calling `progress` after
+/// each cell.
+pub fn run(
+    cases: &[Case],
+    solvers: &[SolverKind],
+    dts: &[f64],
+    mut progress: impl FnMut(&Cell),
+) -> Vec<Cell> {
+    let mut cells = Vec::new();
+    for case in cases {
+        for &dt in dts {
+            for &solver in solvers {
+                let setting = Setting { solver, dt };
+                let start = std::time::Instant::now();
+                let outcome = if matches!(solver, SolverKind::Lemke { .. }) && !case.lemke {
+                    None
+                } else {
+                    Some((case.run)(&setting).map_err(|e| e.to_string()))
+                };
+                let cell = Cell {
+                    case: case.name,
+                    solver: setting.solver_label(),
+                    dt,
+                    outcome,
+                    seconds: start.elapsed().as_secs_f64(),
+                };
+                progress(&cell);
+                cells.push(cell);
+            }
+        }
+    }
+    cells
+}
+
+fn dt_label(dt: f64) -> String {
+    format!("1/{}", (1.0 / dt).round())
+}
+
+fn cell_text(cell: &Cell) -> String {
+    match &cell.outcome {
+        None => "skipped".into(),
+        Some(Err(_)) => "error".into(),
+        Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
+    }
+}
+
+/// The report as a markdown table (one row per case and dt, one column per solver) followed by
+/// the criteria and each cell's detail.
+pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
+    let mut solvers: Vec<String> = Vec::new();
+    for c in cells {
+        if !solvers.contains(&c.solver) {
+            solvers.push(c.solver.clone());
+        }
+    }
+    let mut out =
+        format!("| case | dt (s) | {} |\n|---|---|{}\n", solvers.join(" | "), "---|".repeat(solvers.len()));
+    let mut rows: Vec<(&str, u64)> = Vec::new();
+    for c in cells {
+        let key = (c.case, c.dt.to_bits());
+        if !rows.contains(&key) {
+            rows.push(key);
+        }
+    }
+    for (case, dt) in rows {
+        let texts: Vec<String> = solvers
+            .iter()
+            .map(|s| {
+                cells
+                    .iter()
+                    .find(|c| c.case == case && c.dt.to_bits() == dt && &c.solver == s)
+                    .map_or("—".into(), cell_text)
+            })
+            .collect();
+        out += &format!("| {case} | {} | {} |\n", dt_label(f64::from_bits(dt)), texts.join(" | "));
+    }
+    out += "\nCriteria (the figure in each cell):\n\n";
+    for case in cases {
+        if cells.iter().any(|c| c.case == case.name) {
+            out += &format!("- `{}`: {} — figure: {}\n", case.name, case.criterion, case.figure);
+        }
+    }
+    out += "\nDetails:\n\n";
+    for c in cells {
+        let detail = match &c.outcome {
+            Some(Ok(o)) => o.detail.clone(),
+            Some(Err(e)) => format!("error: {e}"),
+            None => String::new(),
+        };
+        if !detail.is_empty() {
+            out += &format!("- {} {} dt {}: {}\n", c.case, c.solver, dt_label(c.dt), detail);
+        }
+    }
+    out
+}
+
+/// The report as CSV: `case,solver,dt,pass,figure,seconds,detail` (pass is `skipped` or
+/// `error` when the cell did not run).
+pub fn csv(cells: &[Cell]) -> String {
+    let mut out = String::from("case,solver,dt,pass,figure,seconds,detail\n");
+    for c in cells {
+        let (pass, figure, detail) = match &c.outcome {
+            None => ("skipped".to_string(), String::new(), String::new()),
+            Some(Err(e)) => ("error".to_string(), String::new(), e.clone()),
+            Some(Ok(o)) => (o.pass.to_string(), format!("{:e}", o.figure), o.detail.clone()),
+        };
+        out += &format!(
+            "{},{},{},{},{},{:.3},\"{}\"\n",
+            c.case,
+            c.solver,
+            c.dt,
+            pass,
+            figure,
+            c.seconds,
+            detail.replace('"', "'")
+        );
+    }
+    out
+}

@@ -1,0 +1,165 @@
+//! Numerical stability on hard cases (issue 8): each case of `gelenk::report::stability` — the
+//! same scenes and measurements as `gelenk report stability` — asserted at a setting that should
+//! pass, and, where the physics or the integrator does not meet the issue's criterion, the
+//! measured limit asserted and documented instead (never a silently weakened bound).
+
+use gelenk::report::stability::{self, Outcome, Setting};
+use gelenk::world::SolverKind;
+
+const LEMKE: SolverKind = SolverKind::Lemke { facets: 8 };
+const PGS50: SolverKind = SolverKind::Pgs { iterations: 50, omega: 1.0 };
+
+fn run(name: &str, solver: SolverKind, dt: f64) -> Outcome {
+    let case = stability::case(name).unwrap_or_else(|| panic!("no case {name}"));
+    let outcome = (case.run)(&Setting { solver, dt }).unwrap_or_else(|e| panic!("{name}: {e}"));
+    println!("{name} ({solver:?}, dt {dt}): figure {:e}; {}", outcome.figure, outcome.detail);
+    outcome
+}
+
+fn assert_passes(name: &str, solver: SolverKind, dt: f64) -> Outcome {
+    let o = run(name, solver, dt);
+    assert!(
+        o.pass,
+        "{name}: {} = {:e} fails `{}`; {}",
+        stability::case(name).unwrap().figure,
+        o.figure,
+        stability::case(name).unwrap().criterion,
+        o.detail
+    );
+    o
+}
+
+#[test]
+fn tall_stacks_and_a_pyramid_hold() {
+    // Top-box drift < 1 mm (1 % of the 0.1 m box) over 10 s, penetration below the 5 mm margin.
+    // At dt = 1/60 s: clarabel takes ~40 s for the 20-stack at 1/240 s, beyond this file's
+    // budget; the report covers the other settings (PGS fails the drift criterion on them).
+    assert_passes("stack10", SolverKind::Clarabel, 1.0 / 60.0);
+    assert_passes("stack20", SolverKind::Clarabel, 1.0 / 60.0);
+    assert_passes("pyramid10", SolverKind::Clarabel, 1.0 / 60.0);
+}
+
+#[test]
+fn a_heavy_box_on_a_light_one_holds() {
+    // Mass ratio 1:1000. (The 100-link chain with a 1000:1 end mass, |ΔE/E| < 1e-6, needs RK4
+    // and waits for src/integrators/.)
+    assert_passes("heavy_on_light", SolverKind::Clarabel, 1.0 / 240.0);
+}
+
+#[test]
+fn newtons_cradle_conserves_momentum_and_never_gains_energy() {
+    // Simultaneous impacts are not unique. With restitution as a target velocity on the one
+    // closing contact (the others touch at rest), every solver returns the same answer: the
+    // striker bounces back at −0.6 m/s and the four touching balls leave together at 0.4 m/s —
+    // momentum 1 and energy 0.5 J, as before, but not the sequential answer (0, 0, 0, 0, 1).
+    for solver in [LEMKE, PGS50] {
+        let o = assert_passes("cradle", solver, 1.0 / 240.0);
+        assert!(o.detail.starts_with("final v = [-0.600, 0.400, 0.400, 0.400, 0.400]"), "{}", o.detail);
+    }
+    // clarabel's interior point meets restitution only to its tolerance: momentum to 1e-12,
+    // but energy may rise by its 1e-10-level residual (measured 2e-10) — documented, not hidden.
+    let o = run("cradle", SolverKind::Clarabel, 1.0 / 240.0);
+    assert!(o.figure < 1e-12, "momentum {}", o.figure);
+    assert!(o.detail.starts_with("final v = [-0.600, 0.400, 0.400, 0.400, 0.400]"), "{}", o.detail);
+    let growth: f64 = o.detail.rsplit("= ").next().unwrap().parse().unwrap();
+    assert!(growth < 1e-9, "clarabel energy growth {growth}");
+}
+
+#[test]
+fn dzhanibekov_spin_flips_with_the_reference_period() {
+    // The flip period matches the RK4 solution of Euler's equations to 1 %. Angular momentum
+    // and energy are NOT constant to the issue's 1e-6: the world's semi-implicit Euler treats
+    // the gyroscopic term ω × Iω explicitly and drifts to first order in dt (measured max
+    // relative drift 8.6e-2 at dt = 1e-3, 8.1e-3 at 1e-4). The bound below is that measured
+    // limit; 1e-6 waits for the RK4/implicit-gyroscopic integrator (src/integrators/).
+    let o = run("dzhanibekov", SolverKind::Clarabel, 1e-4);
+    assert!(o.figure < 1e-2, "drift {:e} (was 8.1e-3)", o.figure);
+    let error: f64 = o.detail.rsplit("error ").next().unwrap().trim_end_matches(')').parse().unwrap();
+    assert!(error < 0.01, "flip period error {error}: {}", o.detail);
+}
+
+#[test]
+fn four_bar_stays_closed() {
+    // Closure < 1e-8 m over 10 s (the position projection holds it at ~1e-12 m). The issue's
+    // energy drift < 1e-4 is not met: semi-implicit Euler with velocity-level loop impulses
+    // and the tangent projection of v dissipates to first order in dt. The bound below is the
+    // measured limit at dt = 1e-3, relative to the largest kinetic energy.
+    let o = run("four_bar", LEMKE, 1e-3);
+    // (measured: closure 1.3e-12 m, |ΔE| 0.24 of the largest kinetic energy 0.71 J)
+    assert!(o.figure < 1e-8, "closure {:e}", o.figure);
+    let drift: f64 = o.detail.split_whitespace().nth(2).unwrap().parse().unwrap();
+    assert!(drift < FOUR_BAR_ENERGY_LIMIT, "energy drift {drift} of the largest kinetic energy");
+}
+
+/// Measured |ΔE| over 10 s at dt = 1e-3, as a fraction of the largest kinetic energy (see
+/// `four_bar_stays_closed`).
+const FOUR_BAR_ENERGY_LIMIT: f64 = 0.3; // measured 0.24
+
+#[test]
+fn stiff_suspension_is_stable_from_1e_minus_2_to_1e4() {
+    // k·dt²/m ∈ {1e-2, 1, 1e2, 1e4}: the implicit spring never amplifies the oscillation.
+    for dt in [1.0 / 60.0, 1e-3] {
+        assert_passes("suspension", SolverKind::Clarabel, dt);
+    }
+}
+
+#[test]
+fn friction_on_an_incline() {
+    // Five boxes on one 20° ramp stick iff μ ≥ tan θ = 0.364 (sliders within 5 % of
+    // ½ g (sin θ − μ cos θ) t²); a ball rolls at (5/7) g sin θ ± 1 %.
+    assert_passes("ramp5", SolverKind::Clarabel, 1.0 / 240.0);
+    for solver in [LEMKE, SolverKind::Clarabel, PGS50] {
+        assert_passes("rolling_ball", solver, 1.0 / 240.0);
+    }
+}
+
+#[test]
+fn a_sliding_box_stops_after_v0_squared_over_two_mu_g() {
+    // Lemke solves the exact (pyramid) complementarity problem: within 2 %.
+    assert_passes("sliding_box", LEMKE, 1e-3);
+    // clarabel solves the convex relaxation: a sliding contact separates at μ‖u_t‖, so the box
+    // "hovers" — it rises by centimetres while sliding (measured 3.4 cm at dt = 1/240) and
+    // friction acts only in the steps it touches. The distance criterion still holds here.
+    let o = assert_passes("sliding_box", SolverKind::Clarabel, 1.0 / 240.0);
+    let rose: f64 = o.detail.split("rose ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+    assert!(rose > 1e-2, "the relaxation's hover is visible: {rose} m");
+}
+
+#[test]
+fn resting_contact_does_not_jitter() {
+    assert_passes("resting", SolverKind::Clarabel, 1.0 / 240.0);
+    assert_passes("resting", PGS50, 1.0 / 240.0);
+}
+
+#[test]
+fn a_fast_small_sphere_and_a_thin_wall() {
+    // 1 cm sphere at 100 m/s, 2 cm wall. Speculative contacts (rows for pairs within the 5 mm
+    // margin, target −distance/h) stop it whenever one sampled position lands in the wall or
+    // its margin before the centre crosses the mid-plane; no continuous collision detection.
+    // Measured: stopped for v·dt/(thickness + 2r) = 0.25, 0.5, 0.75 and 1.0; tunnels at 1.5.
+    for dt in [1e-4, 2e-4, 3e-4, 4e-4] {
+        assert_passes("fast_sphere", SolverKind::Clarabel, dt);
+    }
+    let o = run("fast_sphere", SolverKind::Clarabel, 6e-4);
+    assert!(!o.pass && (o.figure - 1.5).abs() < 1e-12, "tunnels at 1.5: {}", o.detail);
+}
+
+#[test]
+fn far_from_the_origin() {
+    // The issue asks for the same motion at a 1e6 m offset within 1e-6. Measured: it is not —
+    // the thrown ball differs by 1e-1 (clarabel) and 5e-2 (PGS 50) of its travel at dt = 1/240.
+    // The first step already differs (normal impulse 0.443 vs 0.430 N·s) with the contact
+    // distance 0 vs −2.3e-11 m (rounding at 1e6); the cause is not found yet. This test pins
+    // the measured state so that a fix shows up; it asserts the limit, not the criterion.
+    let o = run("far_origin", PGS50, 1.0 / 240.0);
+    assert!(!o.pass && o.figure < 0.2, "relative difference {:e}", o.figure);
+}
+
+#[test]
+fn determinism_identical_hash_after_1000_steps() {
+    // Lemke is left out: on these tumbling boxes it ends on a ray (no solution reachable) at
+    // some step, an error the report shows; the other two are bit-identical run to run.
+    for solver in [SolverKind::Clarabel, PGS50] {
+        assert_passes("determinism", solver, 1.0 / 240.0);
+    }
+}
