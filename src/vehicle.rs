@@ -209,7 +209,7 @@ impl Vehicle {
         let rear_axle = (wheels[2].mount + wheels[3].mount) / 2.0;
         let wheelbase = front_axle.x - rear_axle.x;
         let track = wheels[0].mount.y - wheels[1].mount.y;
-        if !(wheelbase > 0.0) || !(track > 0.0) {
+        if wheelbase.is_nan() || wheelbase <= 0.0 || track.is_nan() || track <= 0.0 {
             return Err(VehicleError::BadValue {
                 what: "the front wheels' mount x minus the rear's, and the left wheels' mount y minus the right's",
                 expected: "positive",

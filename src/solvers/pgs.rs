@@ -209,7 +209,7 @@ fn friction_block_step(
 ) -> Option<(f64, f64)> {
     let [g11, g12, g22] = g;
     let det = g11 * g22 - g12 * g12;
-    if !(det > 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE)) {
+    if det.is_nan() || det <= 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE) {
         return None;
     }
     let free =
