@@ -26,8 +26,13 @@ pub struct Data {
     pub s: Vec<Motion>,
     /// Column of each dof in world coordinates (about the world origin): the joint Jacobian.
     pub j_world: Vec<Motion>,
-    /// Composite rigid-body inertia of each subtree, in world coordinates (CRBA).
+    /// Composite rigid-body inertia of each subtree, in world axes about the CRBA reference point
+    /// (the first body's origin; see [`crate::algorithms::crba`]).
     pub ycrb: Vec<SpatialInertia>,
+    /// Joint motion-subspace columns in world axes about the CRBA reference point (the first
+    /// body's origin), one per velocity dof: [`crate::algorithms::crba`]'s working copy of
+    /// `j_world`, kept near the bodies so that M does not lose digits far from the origin.
+    pub j_crba: Vec<Motion>,
     /// Articulated-body inertia, in the body frame (ABA).
     pub ia: Vec<Mat6>,
     /// Articulated bias force, in the body frame (ABA).
@@ -75,6 +80,7 @@ impl Data {
             s: vec![Motion::zero(); nv],
             j_world: vec![Motion::zero(); nv],
             ycrb: vec![SpatialInertia::zero(); n],
+            j_crba: vec![Motion::zero(); nv],
             ia: vec![Mat6::zeros(); n],
             pa: vec![Force::zero(); n],
             u: vec![Vec6::zeros(); nv],
