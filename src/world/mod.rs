@@ -553,6 +553,16 @@ impl World {
         total
     }
 
+    /// Kinetic energy of every multibody (J), at the current states.
+    pub fn kinetic_energy(&mut self) -> f64 {
+        let mut total = 0.0;
+        for b in &mut self.bodies {
+            let (q, v) = (&b.state.q, &b.state.v);
+            total += crate::algorithms::kinetic_energy(&b.model, &mut b.data, q, v).unwrap_or(f64::NAN);
+        }
+        total
+    }
+
     /// Total linear momentum Σ R_i (m_i v_i + ω_i × m_i c_i) of every body (kg·m/s, world axes)
     /// at the current states.
     pub fn linear_momentum(&mut self) -> Vec3 {

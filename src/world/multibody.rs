@@ -55,6 +55,24 @@ impl PoseServo {
     pub fn uniform(target: DVector<f64>, gain: f64, max_velocity: f64, max_force: f64, nv: usize) -> Self {
         Self { target, gain, max_velocity, max_force: DVector::from_element(nv, max_force) }
     }
+
+    /// A servo to `target` whose force bound on each dof of joint j is `torque_per_kg` times the
+    /// mass (kg) of the subtree the joint moves (N·m/kg → N·m): strong hips and spine, weak
+    /// wrists, as muscles scale with the load they carry.
+    pub fn scaled_by_subtree_mass(
+        model: &Model,
+        target: DVector<f64>,
+        gain: f64,
+        max_velocity: f64,
+        torque_per_kg: f64,
+    ) -> Self {
+        let mut max_force = DVector::zeros(model.nv());
+        for j in 1..model.nbodies() {
+            let bound = torque_per_kg * model.subtree_mass(j);
+            max_force.rows_mut(model.idx_v(j), model.joint(j).nv()).fill(bound);
+        }
+        Self { target, gain, max_velocity, max_force }
+    }
 }
 
 /// A multibody in a world.
