@@ -6,14 +6,23 @@ use gelenk::io::scene;
 use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let path = std::env::args().nth(1).unwrap_or_else(|| concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll_fall.toml").into());
+    let path = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll_fall.toml").into());
     let mut s = scene::load_file(&path)?;
     let world = &mut s.world;
     let mass: f64 = (0..world.multibody_count()).map(|i| world.multibody(i).model().total_mass()).sum();
     let g = world.options().gravity.norm();
     let drop_energy = mass * g * 1.0; // m g h for the 1 m drop
     let steps = (s.duration / world.options().dt).round() as usize;
-    println!("{}: {} multibodies, {:.1} kg, {} steps of {} s", s.name, world.multibody_count(), mass, steps, world.options().dt);
+    println!(
+        "{}: {} multibodies, {:.1} kg, {} steps of {} s",
+        s.name,
+        world.multibody_count(),
+        mass,
+        steps,
+        world.options().dt
+    );
     let e0 = world.total_energy();
     let (mut landed, mut rest) = (None::<f64>, None::<f64>);
     let (mut max_pen, mut max_violation, mut max_energy) = (0.0f64, 0.0f64, e0);
@@ -24,7 +33,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         stepping += start.elapsed().as_secs_f64();
         let (contacts, pen, t) = (stats.contacts, stats.max_penetration, stats.time);
         max_pen = max_pen.max(pen);
-        let ground_contact = world.contacts().iter().any(|c| c.body_b == gelenk::collision::Attachment::World);
+        let ground_contact =
+            world.contacts().iter().any(|c| c.body_b == gelenk::collision::Attachment::World);
         if landed.is_none() && ground_contact {
             landed = Some(t);
             println!("t = {t:.3} s: lands ({contacts} contacts)");
@@ -39,7 +49,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!("energy {e0:.1} J -> {:.1} J (never above {max_energy:.1} J)", world.total_energy());
-    println!("deepest penetration {:.2} mm; largest joint-limit overshoot {:.3}°", max_pen * 1e3, max_violation.to_degrees());
+    println!(
+        "deepest penetration {:.2} mm; largest joint-limit overshoot {:.3}°",
+        max_pen * 1e3,
+        max_violation.to_degrees()
+    );
     if let (Some(l), Some(r)) = (landed, rest) {
         println!("came to rest {:.2} s after landing", r - l);
     }

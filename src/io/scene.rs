@@ -1680,11 +1680,20 @@ impl Builder<'_> {
                         place_fixed_base(&mut model, &x);
                     }
                     let pose_servo = u.pose_servo.as_ref().map(|s| {
-                        PoseServo::scaled_by_subtree_mass(&model, q.clone(), s.gain.0, s.max_velocity.0, s.torque_per_kg.0)
+                        PoseServo::scaled_by_subtree_mass(
+                            &model,
+                            q.clone(),
+                            s.gain.0,
+                            s.max_velocity.0,
+                            s.torque_per_kg.0,
+                        )
                     });
-                    let index =
-                        world.add_multibody(&name, model, &meshes).map_err(self.world_error(u.path.span()))?;
-                    world.set_self_collision(index, u.self_collision).map_err(self.world_error(span.clone()))?;
+                    let index = world
+                        .add_multibody(&name, model, &meshes)
+                        .map_err(self.world_error(u.path.span()))?;
+                    world
+                        .set_self_collision(index, u.self_collision)
+                        .map_err(self.world_error(span.clone()))?;
                     for c in world.collision().colliders_of(index).to_vec() {
                         world.collision_mut().set_material(c, material);
                     }

@@ -553,6 +553,18 @@ impl World {
         total
     }
 
+    /// Moves every collider to the current states (poses, Jacobians), as a step's first phase
+    /// does: for drawing or querying contacts before the first step or after editing states.
+    pub fn refresh_collision(&mut self) -> Result<(), StepError> {
+        for i in 0..self.bodies.len() {
+            let b = &mut self.bodies[i];
+            b.kinematics()
+                .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+            self.collision.update_multibody(i, &b.data)?;
+        }
+        Ok(())
+    }
+
     /// Kinetic energy of every multibody (J), at the current states.
     pub fn kinetic_energy(&mut self) -> f64 {
         let mut total = 0.0;
