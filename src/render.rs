@@ -277,6 +277,9 @@ pub fn render_scene(
 
 type Frame = (f64, Vec<Outline>, Vec<Outline>);
 
+/// A named line of a plot: (legend, points (t, value), colour).
+type Curve<'a> = (&'a str, Vec<(f64, f64)>, RGBColor);
+
 fn draw(
     scene: &Scene,
     options: &RenderOptions,
@@ -364,7 +367,7 @@ fn draw(
     let plots = root.clone().shrink((0, title_h + 2 * cell), (width, plots_h));
     let panels = plots.split_evenly((1, 3));
     let t_end = series.last().map_or(1.0, |s| s.time).max(1e-9);
-    let curves: [(&str, Vec<(&str, Vec<(f64, f64)>, RGBColor)>); 3] = [
+    let curves: [(&str, Vec<Curve>); 3] = [
         ("centre-of-mass height (m)", vec![("z", series.iter().map(|s| (s.time, s.height)).collect(), BLUE)]),
         (
             "centre-of-mass speed (m/s)",
@@ -394,7 +397,7 @@ fn draw(
             .configure_mesh()
             .x_desc("t (s)")
             .label_style(("sans-serif", 12))
-            .light_line_style(RGBColor(235, 235, 235))
+            .light_line_style(TRANSPARENT)
             .draw()
             .map_err(|e| fail(&e))?;
         let several = lines.len() > 1;

@@ -188,8 +188,7 @@ impl Multibody {
                     self.model.nv()
                 )));
             }
-            if !s.target.iter().all(|x| x.is_finite())
-                || !(s.gain >= 0.0 && s.max_velocity >= 0.0)
+            if !(s.target.iter().all(|x| x.is_finite()) && s.gain >= 0.0 && s.max_velocity >= 0.0)
                 || s.max_force.iter().any(|f| f.is_nan() || *f < 0.0)
             {
                 return Err(bad("target must be finite; gain, max_velocity, max_force non-negative".into()));
