@@ -43,9 +43,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         max_energy = max_energy.max(energy);
         max_violation = max_violation.max(world.constraint_violation());
         let kinetic = world.kinetic_energy();
-        if landed.is_some() && rest.is_none() && kinetic < 0.01 * drop_energy {
-            rest = Some(t);
-            println!("t = {t:.3} s: at rest (kinetic energy {kinetic:.2} J < 1 % of the drop energy {drop_energy:.0} J)");
+        // At rest from the last time the kinetic energy was at or above 1 % of the drop energy.
+        match (landed.is_some() && kinetic < 0.01 * drop_energy, rest) {
+            (true, None) => rest = Some(t),
+            (false, Some(_)) => rest = None,
+            _ => {}
         }
     }
     println!("energy {e0:.1} J -> {:.1} J (never above {max_energy:.1} J)", world.total_energy());
@@ -54,8 +56,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         max_pen * 1e3,
         max_violation.to_degrees()
     );
-    if let (Some(l), Some(r)) = (landed, rest) {
-        println!("came to rest {:.2} s after landing", r - l);
+    match (landed, rest) {
+        (Some(l), Some(r)) => println!(
+            "at rest from t = {r:.3} s ({:.2} s after landing): kinetic energy below 1 % of the drop energy {drop_energy:.0} J from then on",
+            r - l
+        ),
+        _ => println!("not at rest by the end"),
     }
     println!("{:.1} µs per step (World::step only)", stepping / steps as f64 * 1e6);
     Ok(())
