@@ -42,6 +42,7 @@ pub mod io;
 pub mod math;
 pub mod model;
 pub mod plot;
+pub mod render;
 pub mod report;
 pub mod scenes;
 pub mod solvers;

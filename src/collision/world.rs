@@ -102,6 +102,10 @@ impl Collider {
         let parry_frame = from_pose(&self.world_pose);
         self.offset.map_or(parry_frame, |o| parry_frame * o.inverse())
     }
+    /// parry's shape and its world pose (parry's frame), for drawing.
+    pub(crate) fn parry_shape(&self) -> (&SharedShape, &Pose) {
+        (&self.shape, &self.world_pose)
+    }
     /// World axis-aligned bounding box (m), as of the last update, margin not included.
     pub fn aabb(&self) -> ([f64; 3], [f64; 3]) {
         (self.aabb.mins.to_array(), self.aabb.maxs.to_array())

@@ -1,9 +1,11 @@
-//! Joint rows: position limits (unilateral, with bounce and ODE's StopERP/StopCFM), velocity
+//! Joint rows: position limits (unilateral, with bounce and ODE's StopERP/StopCFM) — of scalar
+//! coordinates and the swing cone and twist range of ball joints ([`crate::model::BallLimits`]) —, velocity
 //! motors (a bounded row: target velocity, maximum force — ODE's Vel/FMax) and Coulomb joint
 //! friction (a bounded row with target velocity 0).
 
 use super::{ProblemBuilder, RowLaw, RowOrigin};
-use crate::model::{Joint, Model};
+use crate::math::Vec3;
+use crate::model::{BallLimits, Joint, Model};
 use nalgebra::DVector;
 
 /// Parameters of joint-limit rows.
@@ -32,9 +34,12 @@ fn has_scalar_coordinates(joint: &Joint) -> bool {
 }
 
 /// Appends a row for every active position limit of `model` at configuration `q` and velocity
-/// `v` (joints whose coordinates are scalars: hinge, slider, universal, hinge2, planar). A lower
-/// limit row has J = e_k (its impulse pushes the coordinate up), an upper one J = −e_k. `col` is
-/// the column offset of this model's velocities; `h` the step (s).
+/// `v` (joints whose coordinates are scalars: hinge, slider, universal, hinge2, planar; and ball
+/// joints with [`crate::model::BallLimits`]). A lower limit row has J = e_k (its impulse pushes
+/// the coordinate up), an upper one J = −e_k. A ball joint's swing row has J = −∂θ/∂ω (the unit
+/// swing axis in the child frame, see [`crate::model::swing_twist`]: its impulse turns the child
+/// back into the cone), its twist rows J = ±∂φ/∂ω. `col` is the column offset of this model's
+/// velocities; `h` the step (s). A row exists when its stop is within `p.margin`.
 pub fn add_joint_limit_rows(
     builder: &mut ProblemBuilder,
     model: &Model,
@@ -46,6 +51,10 @@ pub fn add_joint_limit_rows(
 ) {
     for i in 1..model.nbodies() {
         let joint = model.joint(i);
+        if let Some(limits) = model.ball_limits(i) {
+            add_ball_limit_rows(builder, limits, q, v, model.idx_q(i), model.idx_v(i), col, h, p);
+            continue;
+        }
         if !has_scalar_coordinates(joint) {
             continue;
         }
@@ -63,6 +72,39 @@ pub fn add_joint_limit_rows(
                 let (_, row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
                 row[col + vi] = sign;
             }
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn add_ball_limit_rows(
+    builder: &mut ProblemBuilder,
+    limits: &BallLimits,
+    q: &DVector<f64>,
+    v: &DVector<f64>,
+    iq: usize,
+    iv: usize,
+    col: usize,
+    h: f64,
+    p: &JointLimitParameters,
+) {
+    let (distances, st) = limits.distances(&q.as_slice()[iq..iq + 4]);
+    let omega = Vec3::new(v[iv], v[iv + 1], v[iv + 2]);
+    let rows = [
+        (distances[0], -st.swing_rate, RowOrigin::SwingLimit(iv)),
+        (distances[1], st.twist_rate, RowOrigin::TwistLowerLimit(iv)),
+        (distances[2], -st.twist_rate, RowOrigin::TwistUpperLimit(iv)),
+    ];
+    for (distance, direction, origin) in rows {
+        // A zero direction (swing at exactly 0) cannot be at a stop of a cone wider than the margin.
+        if distance > p.margin || direction == Vec3::zeros() {
+            continue;
+        }
+        let approach = direction.dot(&omega);
+        let target = limit_target(distance, approach, h, p);
+        let (_, row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
+        for k in 0..3 {
+            row[col + iv + k] = direction[k];
         }
     }
 }

@@ -90,6 +90,12 @@ pub enum RowOrigin {
     LowerLimit(usize),
     /// Upper position limit of a dof.
     UpperLimit(usize),
+    /// Swing-cone limit of the ball joint whose first dof is this.
+    SwingLimit(usize),
+    /// Lower twist limit of the ball joint whose first dof is this.
+    TwistLowerLimit(usize),
+    /// Upper twist limit of the ball joint whose first dof is this.
+    TwistUpperLimit(usize),
     /// Velocity motor of a dof.
     Motor(usize),
     /// Coulomb friction of a dof.

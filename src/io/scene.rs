@@ -106,6 +106,10 @@
 //! | | `joint_velocities` | initial rates, `{ joint = value }` |
 //! | | `limits` | position limits overriding the file's, `{ joint = [lower, upper] }` (hinge and slider joints) |
 //! | | `servo` | `{ gain, max_velocity, max_force }`: hold every scalar joint at its initial position |
+//! | | `pose_servo` | `{ gain, max_velocity, torque_per_kg }`: a powered ragdoll — every joint but the floating base (ball joints too) driven to its initial position by a [`PoseServo`] whose torque bound is `torque_per_kg` × the mass the joint moves |
+//! | | `count`, `spacing`, `jitter`, `seed` | copies of the model as for `[[body]]` (named `{name}{k}` or `{name}_{i}_{j}_{k}`) |
+//! | | `random_rotation` | floating base: each copy turned by a uniformly random rotation (seeded by `seed`) (false) |
+//! | | `spin` | floating base: an angular velocity of this magnitude (rad/s) about a random axis (seeded) added to `angular_velocity` (0) |
 //! | | `self_collision` | collisions between the model's own bodies (false) |
 //! | | `material` | material of every collider of the model (0) |
 //! | | `missing_meshes` | `"error"` (default) or `"skip"` collision meshes that cannot be found or read |
@@ -138,7 +142,7 @@ use crate::io::urdf::{self, UrdfError, UrdfOptions};
 use crate::math::{Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape};
 use crate::vehicle::{Vehicle, VehicleConfig};
-use crate::world::{Servo, SolverKind, StepError, World, WorldOptions};
+use crate::world::{PoseServo, Servo, SolverKind, StepError, World, WorldOptions};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
 use serde::de::Error as _;
@@ -1149,7 +1153,23 @@ struct ServoSection {
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
+struct PoseServoSection {
+    gain: Positive,
+    max_velocity: PositiveOrInfinite,
+    torque_per_kg: Positive,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct UrdfSection {
+    pose_servo: Option<PoseServoSection>,
+    count: Option<Count>,
+    spacing: Option<V3>,
+    jitter: Option<NonNegative>,
+    seed: Option<u64>,
+    #[serde(default)]
+    random_rotation: bool,
+    spin: Option<NonNegative>,
     path: Spanned<String>,
     name: Option<String>,
     #[serde(default)]
@@ -1638,19 +1658,17 @@ impl Builder<'_> {
             model.lower_position_limit[k] = lower.0;
             model.upper_position_limit[k] = upper.0;
         }
-        if !u.floating {
-            place_fixed_base(&mut model, &placement);
+        if !u.floating && (u.random_rotation || u.spin.is_some()) {
+            return Err(err("`random_rotation` and `spin` need `floating = true`".to_string()));
         }
-        let name = u.name.clone().unwrap_or_else(|| model.name().to_string());
-        let name = if name.is_empty() { "robot".to_string() } else { name };
-        self.claim_name(&name, span.clone())?;
+        let base_name = u.name.clone().unwrap_or_else(|| model.name().to_string());
+        let base_name = if base_name.is_empty() { "robot".to_string() } else { base_name };
 
         let mut q = model.neutral_configuration();
         let mut v = nalgebra::DVector::zeros(model.nv());
-        if u.floating {
-            let root = model.children(0).first().copied().filter(|&j| *model.joint(j) == Joint::Free);
-            let root = root.ok_or_else(|| err("the floating base has no free joint".to_string()))?;
-            set_free_joint(&model, root, &placement, u.velocity, u.angular_velocity, &mut q, &mut v);
+        let root = model.children(0).first().copied().filter(|&j| *model.joint(j) == Joint::Free);
+        if u.floating && root.is_none() {
+            return Err(err("the floating base has no free joint".to_string()));
         }
         for (name, value) in &u.joints {
             let j = joint_of(&model, name, value.span())?;
@@ -1703,25 +1721,105 @@ impl Builder<'_> {
             },
             ..MeshOptions::default()
         };
-        let index = world.add_multibody(&name, model, &meshes).map_err(self.world_error(u.path.span()))?;
-        world.set_self_collision(index, u.self_collision).map_err(self.world_error(span.clone()))?;
-        for c in world.collision().colliders_of(index).to_vec() {
-            world.collision_mut().set_material(c, material);
-        }
-        let mb = world.multibody_mut(index);
-        mb.state.q = q;
-        mb.state.v = v;
-        if let Some(s) = &u.servo {
-            for (k, target) in servo_dofs {
-                mb.set_servo(
-                    k,
-                    Some(Servo {
-                        target_position: target,
-                        gain: s.gain.0,
-                        max_velocity: s.max_velocity.0,
-                        max_force: s.max_force.0,
-                    }),
-                );
+
+        // Copies, placed as `[[body]]` copies are.
+        let (dims, grid) = match u.count {
+            None => ([1, 1, 1], false),
+            Some(Count::Row(n)) => ([n, 1, 1], false),
+            Some(Count::Grid(d)) => (d, true),
+        };
+        let total = dims[0] * dims[1] * dims[2];
+        let spacing = match (u.spacing, total) {
+            (Some(s), _) => s.0,
+            (None, 1) => Vec3::zeros(),
+            (None, _) => return Err(err(format!("{total} copies need `spacing`"))),
+        };
+        let jitter = u.jitter.map_or(0.0, |x| x.0);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(u.seed.unwrap_or(0));
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let name = if total == 1 {
+                        base_name.clone()
+                    } else if grid {
+                        format!("{base_name}_{i}_{j}_{k}")
+                    } else {
+                        format!("{base_name}{i}")
+                    };
+                    self.claim_name(&name, span.clone())?;
+                    let offset = if grid {
+                        Vec3::new(i as f64 * spacing.x, j as f64 * spacing.y, k as f64 * spacing.z)
+                    } else {
+                        i as f64 * spacing
+                    };
+                    let mut x = placement;
+                    if jitter > 0.0 {
+                        x.translation += Vec3::from_fn(|_, _| rng.random_range(-jitter..=jitter));
+                    }
+                    x.translation += offset;
+                    if u.random_rotation {
+                        let turn = crate::model::joint::uniform_quaternion(&mut rng);
+                        let r = Transform::from_translation_quaternion(Vec3::zeros(), turn);
+                        x.rotation = r.rotation * x.rotation;
+                    }
+                    let mut angular = u.angular_velocity.map_or(Vec3::zeros(), |w| w.0);
+                    if let Some(spin) = u.spin {
+                        let axis = loop {
+                            let a = Vec3::from_fn(|_, _| rng.random_range(-1.0..=1.0));
+                            if a.norm() > 0.1 && a.norm() <= 1.0 {
+                                break a.normalize();
+                            }
+                        };
+                        angular += axis * spin.0;
+                    }
+                    let mut model = model.clone();
+                    let (mut q, mut v) = (q.clone(), v.clone());
+                    if let Some(root) = root.filter(|_| u.floating) {
+                        set_free_joint(&model, root, &x, u.velocity, Some(V3(angular)), &mut q, &mut v);
+                    } else {
+                        place_fixed_base(&mut model, &x);
+                    }
+                    let pose_servo = u.pose_servo.as_ref().map(|s| {
+                        PoseServo::scaled_by_subtree_mass(
+                            &model,
+                            q.clone(),
+                            s.gain.0,
+                            s.max_velocity.0,
+                            s.torque_per_kg.0,
+                        )
+                    });
+                    let index = world
+                        .add_multibody(&name, model, &meshes)
+                        .map_err(self.world_error(u.path.span()))?;
+                    world
+                        .set_self_collision(index, u.self_collision)
+                        .map_err(self.world_error(span.clone()))?;
+                    for c in world.collision().colliders_of(index).to_vec() {
+                        world.collision_mut().set_material(c, material);
+                    }
+                    let mb = world.multibody_mut(index);
+                    mb.state.q = q;
+                    mb.state.v = v;
+                    if let Some(s) = &u.servo {
+                        for &(k, target) in &servo_dofs {
+                            mb.set_servo(
+                                k,
+                                Some(Servo {
+                                    target_position: target,
+                                    gain: s.gain.0,
+                                    max_velocity: s.max_velocity.0,
+                                    max_force: s.max_force.0,
+                                }),
+                            );
+                        }
+                    }
+                    if let Some(servo) = pose_servo {
+                        mb.set_pose_servo(Some(servo)).map_err(|source| SceneError::Model {
+                            at: self.src.location(span.clone()),
+                            source: Box::new(source),
+                        })?;
+                    }
+                }
             }
         }
         Ok(())

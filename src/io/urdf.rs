@@ -32,11 +32,21 @@
 //! suspension travel coordinate along axis 1 (q = [s, θ₁, θ₂]); `suspension_damping` (N·s/m)
 //! defaults to 0. The `<limit>` of the joint applies to axis 1 (steering); `lower2`/`upper2`
 //! to axis 2.
+//!
+//! ## Extension: ball-joint limits
+//! A `spherical` joint takes anatomical limits ([`crate::model::BallLimits`]): a swing cone of
+//! half-angle `swing` (rad) about `twist_axis` (joint frame, default `0 0 1`) and a twist range
+//! `[twist_lower, twist_upper]` (rad, default ±π) about it:
+//!
+//! ```xml
+//! <joint name="neck" type="spherical"><parent link="chest"/><child link="head"/></joint>
+//! <gelenk joint="neck" type="ball" twist_axis="0 0 1" swing="0.7" twist_lower="-0.6" twist_upper="0.6"/>
+//! ```
 
 use crate::error::ModelError;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::model::{
-    BodySpec, GeometryRole, GeometrySpec, Joint, JointDynamics, JointLimits, Model, ModelBuilder,
+    BallLimits, BodySpec, GeometryRole, GeometrySpec, Joint, JointDynamics, JointLimits, Model, ModelBuilder,
     RigidInertia, Shape, Suspension,
 };
 use std::collections::HashMap;
@@ -135,6 +145,7 @@ struct Extension {
     upper2: f64,
     suspension: Option<Suspension>,
     suspension_range: (f64, f64),
+    ball: Option<BallLimits>,
 }
 
 fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, UrdfError> {
@@ -232,6 +243,12 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
                         body.joint = Joint::Hinge { axis };
                         body.limits = limits(&[range], velocity, effort, 1);
                     }
+                    Some(ext) if ext.kind == "ball" => {
+                        return Err(joint_err(format!(
+                            "a <gelenk> ball extension needs a spherical joint, not {:?}",
+                            j.joint_type
+                        )))
+                    }
                     Some(ext) if ext.kind == "universal" => {
                         body.joint = Joint::Universal { axis1: axis, axis2: ext.axis2 };
                         body.limits = limits(&[range, (ext.lower2, ext.upper2)], velocity, effort, 2);
@@ -247,6 +264,22 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
                     }
                 }
             }
+            T::Spherical => {
+                body.joint = Joint::Ball;
+                match extensions.get(&j.name) {
+                    Some(ext) if ext.kind == "ball" => body.ball_limits = ext.ball,
+                    Some(ext) => {
+                        return Err(joint_err(format!(
+                            "a <gelenk> {} extension needs a revolute or continuous joint, not spherical",
+                            ext.kind
+                        )))
+                    }
+                    None => {}
+                }
+            }
+            other if extensions.get(&j.name).is_some_and(|e| e.kind == "ball") => {
+                return Err(joint_err(format!("a <gelenk> ball extension needs a spherical joint, not {other:?}")))
+            }
             other if extensions.contains_key(&j.name) => {
                 return Err(joint_err(format!(
                     "a <gelenk> universal or hinge2 extension needs a revolute or continuous joint, not {other:?}"
@@ -258,7 +291,6 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
             }
             T::Fixed => {}
             T::Floating => body.joint = Joint::Free,
-            T::Spherical => body.joint = Joint::Ball,
             T::Planar => {
                 let n = axis.try_normalize(1e-12).ok_or_else(|| joint_err("planar joint with a zero normal axis".into()))?;
                 let align = nalgebra::Rotation3::rotation_between(&Vec3::z(), &n)
@@ -365,19 +397,45 @@ fn read_extensions(doc: &roxmltree::Document, file: &str) -> Result<HashMap<Stri
             }
         };
         let kind = node.attribute("type").unwrap_or_default().to_string();
-        if kind != "universal" && kind != "hinge2" {
-            return Err(err(format!("<gelenk> type \"{kind}\" is not `universal` or `hinge2`")));
+        if kind != "universal" && kind != "hinge2" && kind != "ball" {
+            return Err(err(format!("<gelenk> type \"{kind}\" is not `universal`, `hinge2` or `ball`")));
+        }
+        let vector = |name: &str, text: &str| -> Result<Vec3, UrdfError> {
+            let parts: Vec<f64> = text
+                .split_whitespace()
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|_| err(format!("{name}=\"{text}\" is not three numbers")))?;
+            if parts.len() != 3 {
+                return Err(err(format!("{name}=\"{text}\" is not three numbers")));
+            }
+            Ok(Vec3::new(parts[0], parts[1], parts[2]))
+        };
+        if kind == "ball" {
+            let pi = std::f64::consts::PI;
+            let ball = BallLimits {
+                twist_axis: vector("twist_axis", node.attribute("twist_axis").unwrap_or("0 0 1"))?,
+                swing: number("swing", pi)?,
+                twist_lower: number("twist_lower", -pi)?,
+                twist_upper: number("twist_upper", pi)?,
+            };
+            let ext = Extension {
+                kind,
+                axis2: Vec3::zeros(),
+                lower2: f64::NEG_INFINITY,
+                upper2: f64::INFINITY,
+                suspension: None,
+                suspension_range: (f64::NEG_INFINITY, f64::INFINITY),
+                ball: Some(ball),
+            };
+            if out.insert(joint.clone(), ext).is_some() {
+                return Err(err("two <gelenk> extension elements name this joint".into()));
+            }
+            continue;
         }
         let axis_text =
             node.attribute("axis2").ok_or_else(|| err("<gelenk> needs an `axis2` attribute".into()))?;
-        let parts: Vec<f64> = axis_text
-            .split_whitespace()
-            .map(str::parse)
-            .collect::<Result<_, _>>()
-            .map_err(|_| err(format!("axis2=\"{axis_text}\" is not three numbers")))?;
-        if parts.len() != 3 {
-            return Err(err(format!("axis2=\"{axis_text}\" is not three numbers")));
-        }
+        let axis2 = vector("axis2", axis_text)?;
         let suspension = match node.attribute("suspension_stiffness") {
             Some(_) if kind == "hinge2" => Some(Suspension {
                 stiffness: number("suspension_stiffness", 0.0)?,
@@ -388,7 +446,7 @@ fn read_extensions(doc: &roxmltree::Document, file: &str) -> Result<HashMap<Stri
         };
         let ext = Extension {
             kind,
-            axis2: Vec3::new(parts[0], parts[1], parts[2]),
+            axis2,
             lower2: number("lower2", f64::NEG_INFINITY)?,
             upper2: number("upper2", f64::INFINITY)?,
             suspension,
@@ -396,6 +454,7 @@ fn read_extensions(doc: &roxmltree::Document, file: &str) -> Result<HashMap<Stri
                 number("suspension_lower", f64::NEG_INFINITY)?,
                 number("suspension_upper", f64::INFINITY)?,
             ),
+            ball: None,
         };
         if out.insert(joint.clone(), ext).is_some() {
             return Err(err("two <gelenk> extension elements name this joint".into()));

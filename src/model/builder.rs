@@ -1,7 +1,7 @@
 //! [`ModelBuilder`]: validates a body description and turns it into a [`Model`], fusing bodies
 //! attached by fixed joints into their parents.
 
-use super::{Frame, FrameKind, GeometrySpec, Joint, Model, NO_DOF};
+use super::{BallLimits, Frame, FrameKind, GeometrySpec, Joint, Model, NO_DOF};
 use crate::error::ModelError;
 use crate::math::{Mat3, SpatialInertia, Transform, Vec3};
 use nalgebra::DVector;
@@ -122,6 +122,8 @@ pub struct BodySpec {
     pub limits: JointLimits,
     /// Joint damping and friction.
     pub dynamics: JointDynamics,
+    /// Swing-cone and twist limits; only for a [`Joint::Ball`].
+    pub ball_limits: Option<BallLimits>,
     /// Collision and visual shapes, placed in this body's frame.
     pub geometries: Vec<GeometrySpec>,
 }
@@ -145,6 +147,7 @@ impl BodySpec {
             inertia,
             limits: JointLimits::default(),
             dynamics: JointDynamics::default(),
+            ball_limits: None,
             geometries: Vec::new(),
         }
     }
@@ -170,6 +173,12 @@ impl BodySpec {
     /// Sets the limits.
     pub fn with_limits(mut self, limits: JointLimits) -> Self {
         self.limits = limits;
+        self
+    }
+
+    /// Sets swing-cone and twist limits (ball joints only; checked by the builder).
+    pub fn with_ball_limits(mut self, limits: BallLimits) -> Self {
+        self.ball_limits = Some(limits);
         self
     }
 }
@@ -263,6 +272,7 @@ impl ModelBuilder {
             effort_limit: DVector::zeros(0),
             damping: DVector::zeros(0),
             friction: DVector::zeros(0),
+            ball_limits: vec![None],
             frames: vec![Frame {
                 name: UNIVERSE.to_string(),
                 kind: FrameKind::Body,
@@ -295,6 +305,7 @@ impl ModelBuilder {
                 model.children[ancestor].push(b);
                 model.placements.push(x_aj);
                 model.inertias.push(s.inertia.spatial());
+                model.ball_limits.push(s.ball_limits);
                 model.idx_q.push(model.nq);
                 model.idx_v.push(model.nv);
                 let parent_last_dof = last_dof(&model, ancestor);
@@ -343,6 +354,9 @@ impl ModelBuilder {
             }
             let mut s = s.clone();
             s.joint = normalized_joint(&s.joint_name, &s.joint)?;
+            if let Some(b) = &mut s.ball_limits {
+                b.twist_axis = unit_axis(&s.joint_name, &b.twist_axis)?;
+            }
             validate_limits(&s)?;
             out.push(s);
         }
@@ -452,6 +466,21 @@ fn validate_limits(s: &BodySpec) -> Result<(), ModelError> {
     }
     if l.velocity.iter().chain(&l.effort).any(|x| *x < 0.0) {
         return Err(err("velocity and effort limits must be non-negative".to_string()));
+    }
+    if let Some(b) = &s.ball_limits {
+        if s.joint != Joint::Ball {
+            return Err(err(format!("swing/twist limits need a ball joint, not {}", s.joint.kind_name())));
+        }
+        let pi = std::f64::consts::PI;
+        if !(b.swing > 0.0 && b.swing <= pi) {
+            return Err(err(format!("swing cone half-angle {} is not in (0, π]", b.swing)));
+        }
+        if !(-pi <= b.twist_lower && b.twist_lower <= b.twist_upper && b.twist_upper <= pi) {
+            return Err(err(format!(
+                "twist range [{}, {}] is not ordered within [−π, π]",
+                b.twist_lower, b.twist_upper
+            )));
+        }
     }
     let d = &s.dynamics;
     if !(d.damping.is_finite() && d.damping >= 0.0 && d.friction.is_finite() && d.friction >= 0.0) {

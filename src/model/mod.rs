@@ -12,7 +12,7 @@ pub mod joint;
 
 pub use builder::{BodySpec, JointDynamics, JointLimits, ModelBuilder, RigidInertia};
 pub use geometry::{GeometryRole, GeometrySpec, Shape};
-pub use joint::{Joint, Suspension};
+pub use joint::{swing_twist, BallLimits, Joint, Suspension, SwingTwist};
 
 use crate::math::{SpatialInertia, Transform, Vec3};
 use nalgebra::DVector;
@@ -67,6 +67,7 @@ pub struct Model {
     pub(crate) effort_limit: DVector<f64>,
     pub(crate) damping: DVector<f64>,
     pub(crate) friction: DVector<f64>,
+    pub(crate) ball_limits: Vec<Option<BallLimits>>,
     pub(crate) frames: Vec<Frame>,
     pub(crate) geometries: Vec<GeometrySpec>,
     pub(crate) gravity: Vec3,
@@ -166,6 +167,15 @@ impl Model {
     /// Coulomb friction levels (length nv), URDF `<dynamics friction>`.
     pub fn friction(&self) -> &DVector<f64> {
         &self.friction
+    }
+    /// Swing-cone and twist limits of the ball joint carrying body `i` (`None`: unlimited, or
+    /// not a ball joint).
+    pub fn ball_limits(&self, i: usize) -> Option<&BallLimits> {
+        self.ball_limits.get(i).and_then(Option::as_ref)
+    }
+    /// Whether some ball joint has swing/twist limits.
+    pub fn has_ball_limits(&self) -> bool {
+        self.ball_limits.iter().any(Option::is_some)
     }
     /// Every named frame: links and joints, fused ones included.
     pub fn frames(&self) -> &[Frame] {

@@ -14,7 +14,7 @@ mod options;
 mod projection;
 mod sleep;
 
-pub use multibody::{Motor, Multibody, Servo};
+pub use multibody::{Motor, Multibody, PoseServo, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
 pub use projection::LoopProjection;
 
@@ -490,6 +490,7 @@ impl World {
             || self.bodies.iter().any(|b| {
                 b.motors.iter().any(Option::is_some)
                     || b.servos.iter().any(Option::is_some)
+                    || b.pose_servo.is_some()
                     || b.model.friction().iter().any(|f| *f > 0.0)
                     || has_active_limit(b, self.options.limits.margin)
             });
@@ -629,6 +630,28 @@ impl World {
         total
     }
 
+    /// Moves every collider to the current states (poses, Jacobians), as a step's first phase
+    /// does: for drawing or querying contacts before the first step or after editing states.
+    pub fn refresh_collision(&mut self) -> Result<(), StepError> {
+        for i in 0..self.bodies.len() {
+            let b = &mut self.bodies[i];
+            b.kinematics()
+                .map_err(|source| StepError::Dynamics { multibody: self.names[i].clone(), source })?;
+            self.collision.update_multibody(i, &b.data)?;
+        }
+        Ok(())
+    }
+
+    /// Kinetic energy of every multibody (J), at the current states.
+    pub fn kinetic_energy(&mut self) -> f64 {
+        let mut total = 0.0;
+        for b in &mut self.bodies {
+            let (q, v) = (&b.state.q, &b.state.v);
+            total += crate::algorithms::kinetic_energy(&b.model, &mut b.data, q, v).unwrap_or(f64::NAN);
+        }
+        total
+    }
+
     /// Total linear momentum Σ R_i (m_i v_i + ω_i × m_i c_i) of every body (kg·m/s, world axes)
     /// at the current states.
     pub fn linear_momentum(&mut self) -> Vec3 {
@@ -645,14 +668,19 @@ impl World {
         total
     }
 
-    /// The largest loop-closure translation error (m) and joint-limit overshoot (rad or m) at
-    /// the current states.
+    /// The largest loop-closure translation error (m) and joint-limit overshoot (rad or m, ball
+    /// joints' swing cone and twist range included) at the current states.
     pub fn constraint_violation(&mut self) -> f64 {
         let mut worst: f64 = 0.0;
         for b in &self.bodies {
             let (lo, hi) = (b.model.lower_position_limit(), b.model.upper_position_limit());
             for i in 1..b.model.nbodies() {
                 let joint = b.model.joint(i);
+                if let Some(limits) = b.model.ball_limits(i) {
+                    let iq = b.model.idx_q(i);
+                    let (distances, _) = limits.distances(&b.state.q.as_slice()[iq..iq + 4]);
+                    worst = distances.iter().fold(worst, |w, d| w.max(-d));
+                }
                 if matches!(joint, crate::model::Joint::Ball | crate::model::Joint::Free) {
                     continue;
                 }
@@ -736,6 +764,9 @@ impl World {
                     add_motor_row(&mut builder, k, b.col, rate, s.max_force, h);
                 }
             }
+            if let Some(servo) = &b.pose_servo {
+                add_pose_servo_rows(&mut builder, b, servo, h);
+            }
             add_joint_friction_rows(&mut builder, &b.model, b.col, h);
         }
         for (index, (a, b, closure)) in self.loops.iter().enumerate() {
@@ -764,6 +795,9 @@ impl World {
             }
             RowOrigin::LowerLimit(k) => 1 << 62 | k as u64,
             RowOrigin::UpperLimit(k) => 2 << 61 | k as u64,
+            RowOrigin::SwingLimit(k) => 9 << 57 | k as u64,
+            RowOrigin::TwistLowerLimit(k) => 11 << 56 | k as u64,
+            RowOrigin::TwistUpperLimit(k) => 13 << 55 | k as u64,
             RowOrigin::Motor(k) => 3 << 60 | k as u64,
             RowOrigin::JointFriction(k) => 5 << 59 | k as u64,
             RowOrigin::Loop(k) => 7 << 58 | k as u64,
@@ -826,11 +860,17 @@ fn check_finite(
     Ok(())
 }
 
-/// Whether some scalar joint coordinate of the multibody is within `margin` of a limit.
+/// Whether some scalar joint coordinate, or some ball joint's swing or twist, of the multibody is
+/// within `margin` of a limit.
 fn has_active_limit(b: &Multibody, margin: f64) -> bool {
     let (lo, hi) = (b.model.lower_position_limit(), b.model.upper_position_limit());
     (1..b.model.nbodies()).any(|i| {
         let joint = b.model.joint(i);
+        if let Some(limits) = b.model.ball_limits(i) {
+            let iq = b.model.idx_q(i);
+            let (distances, _) = limits.distances(&b.state.q.as_slice()[iq..iq + 4]);
+            return distances.iter().any(|d| *d <= margin);
+        }
         let scalar = !matches!(joint, crate::model::Joint::Ball | crate::model::Joint::Free);
         scalar
             && (b.model.idx_q(i)..b.model.idx_q(i) + joint.nq()).any(|k| {
@@ -838,6 +878,35 @@ fn has_active_limit(b: &Multibody, margin: f64) -> bool {
                     || (hi[k].is_finite() && hi[k] - b.state.q[k] <= margin)
             })
     })
+}
+
+/// Motor rows of a [`PoseServo`]: for every joint but free ones, the rate `gain · (q_target ⊖ q)`
+/// (per dof, clamped to `max_velocity`; for a ball joint the rotation vector of `q⁻¹ q_target`
+/// in the child frame), with each dof's force bound. Dofs with their own motor or servo are left
+/// to it.
+fn add_pose_servo_rows(builder: &mut ProblemBuilder, b: &Multibody, servo: &PoseServo, h: f64) {
+    let model = &b.model;
+    for j in 1..model.nbodies() {
+        let joint = model.joint(j);
+        if matches!(joint, crate::model::Joint::Free) {
+            continue;
+        }
+        let (iq, iv, nq, nv) = (model.idx_q(j), model.idx_v(j), joint.nq(), joint.nv());
+        let mut error = [0.0; 6];
+        joint.difference(
+            &b.state.q.as_slice()[iq..iq + nq],
+            &servo.target.as_slice()[iq..iq + nq],
+            &mut error[..nv],
+        );
+        for (k, e) in error[..nv].iter().enumerate() {
+            let dof = iv + k;
+            if b.motors[dof].is_some() || b.servos[dof].is_some() {
+                continue;
+            }
+            let rate = (servo.gain * e).clamp(-servo.max_velocity, servo.max_velocity);
+            add_motor_row(builder, dof, b.col, rate, servo.max_force[dof], h);
+        }
+    }
 }
 
 /// The position coordinate of velocity dof `k` for joints whose coordinates are scalars.

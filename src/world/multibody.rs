@@ -34,6 +34,47 @@ pub struct Servo {
     pub max_force: f64,
 }
 
+/// A pose servo ("powered ragdoll"): drives every joint except free ones towards the
+/// configuration `target` with bounded force, as velocity motors whose target rate is
+/// `gain · (target ⊖ q)` per dof (the manifold difference: for a ball joint the rotation vector
+/// of `q⁻¹ q_target`, child frame), clamped to `max_velocity`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PoseServo {
+    /// Target configuration (length nq; free-joint entries are ignored).
+    pub target: DVector<f64>,
+    /// Proportional gain (1/s).
+    pub gain: f64,
+    /// Largest commanded rate per dof (rad/s or m/s).
+    pub max_velocity: f64,
+    /// Force bound of each dof (length nv; N·m or N).
+    pub max_force: DVector<f64>,
+}
+
+impl PoseServo {
+    /// A servo to `target` with the same force bound `max_force` on every dof.
+    pub fn uniform(target: DVector<f64>, gain: f64, max_velocity: f64, max_force: f64, nv: usize) -> Self {
+        Self { target, gain, max_velocity, max_force: DVector::from_element(nv, max_force) }
+    }
+
+    /// A servo to `target` whose force bound on each dof of joint j is `torque_per_kg` times the
+    /// mass (kg) of the subtree the joint moves (N·m/kg → N·m): strong hips and spine, weak
+    /// wrists, as muscles scale with the load they carry.
+    pub fn scaled_by_subtree_mass(
+        model: &Model,
+        target: DVector<f64>,
+        gain: f64,
+        max_velocity: f64,
+        torque_per_kg: f64,
+    ) -> Self {
+        let mut max_force = DVector::zeros(model.nv());
+        for j in 1..model.nbodies() {
+            let bound = torque_per_kg * model.subtree_mass(j);
+            max_force.rows_mut(model.idx_v(j), model.joint(j).nv()).fill(bound);
+        }
+        Self { target, gain, max_velocity, max_force }
+    }
+}
+
 /// A multibody in a world.
 #[derive(Clone, Debug)]
 pub struct Multibody {
@@ -47,6 +88,7 @@ pub struct Multibody {
     pub kinematic: bool,
     pub(crate) motors: Vec<Option<Motor>>,
     pub(crate) servos: Vec<Option<Servo>>,
+    pub(crate) pose_servo: Option<PoseServo>,
     /// Generalized forces of this step's external forces (cleared after each step).
     pub(crate) tau_external: DVector<f64>,
     pub(crate) pending_forces: Vec<(usize, Vec3, Vec3, Vec3)>,
@@ -86,6 +128,7 @@ impl Multibody {
             kinematic: false,
             motors: vec![None; nv],
             servos: vec![None; nv],
+            pose_servo: None,
             tau_external: DVector::zeros(nv),
             pending_forces: Vec::with_capacity(nb),
             asleep: false,
@@ -125,6 +168,39 @@ impl Multibody {
     /// Sets a position servo on dof `k` (`None` removes it).
     pub fn set_servo(&mut self, k: usize, servo: Option<Servo>) {
         self.servos[k] = servo;
+    }
+
+    /// Sets a pose servo driving every non-free joint to a target configuration (`None` removes
+    /// it). Errors when the target or force vector has the wrong length or is not finite, or a
+    /// gain, rate or force bound is negative.
+    pub fn set_pose_servo(&mut self, servo: Option<PoseServo>) -> Result<(), crate::error::ModelError> {
+        if let Some(s) = &servo {
+            let bad = |reason: String| crate::error::ModelError::InvalidLimits {
+                joint: "pose servo".into(),
+                reason,
+            };
+            if s.target.len() != self.model.nq() || s.max_force.len() != self.model.nv() {
+                return Err(bad(format!(
+                    "target has {} entries (nq = {}), max_force {} (nv = {})",
+                    s.target.len(),
+                    self.model.nq(),
+                    s.max_force.len(),
+                    self.model.nv()
+                )));
+            }
+            if !(s.target.iter().all(|x| x.is_finite()) && s.gain >= 0.0 && s.max_velocity >= 0.0)
+                || s.max_force.iter().any(|f| f.is_nan() || *f < 0.0)
+            {
+                return Err(bad("target must be finite; gain, max_velocity, max_force non-negative".into()));
+            }
+        }
+        self.pose_servo = servo;
+        Ok(())
+    }
+
+    /// The pose servo, if any.
+    pub fn pose_servo(&self) -> Option<&PoseServo> {
+        self.pose_servo.as_ref()
     }
 
     /// Poses and Jacobian columns at the current q, and the generalized forces of the pending

@@ -22,3 +22,153 @@ pub(super) fn difference(q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
     let d = read_quaternion(q0).inverse() * read_quaternion(q1);
     v_out.copy_from_slice(quat_log(&d).as_slice());
 }
+
+/// Anatomical limits of a ball joint: a swing cone about the twist axis plus a twist range about
+/// it (the "cone–twist" limit of ragdolls). The twist axis is given in the joint frame; at the
+/// neutral configuration it is also the child's axis. The ball's rotation `R` is split as
+/// `R = R_swing R_twist` (see [`swing_twist`]): the swing is the smallest rotation taking the
+/// twist axis `a` to `R a`, the twist a rotation about `a` in the child frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BallLimits {
+    /// Twist axis `a` (unit after model building), joint frame.
+    pub twist_axis: Vec3,
+    /// Half-angle of the swing cone (rad), in (0, π].
+    pub swing: f64,
+    /// Lower twist limit (rad), in [−π, twist_upper].
+    pub twist_lower: f64,
+    /// Upper twist limit (rad), in [twist_lower, π].
+    pub twist_upper: f64,
+}
+
+impl BallLimits {
+    /// Distances to the three stops at ball configuration `q` (quaternion `[x, y, z, w]`):
+    /// `[swing − θ_swing, φ_twist − twist_lower, twist_upper − φ_twist]` (rad); negative means
+    /// the stop is exceeded by that much. Returns the decomposition too.
+    pub fn distances(&self, q: &[f64]) -> ([f64; 3], SwingTwist) {
+        let st = swing_twist(q, &self.twist_axis);
+        ([self.swing - st.swing, st.twist - self.twist_lower, self.twist_upper - st.twist], st)
+    }
+}
+
+/// The swing–twist decomposition of a ball joint's rotation and the rates of both angles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwingTwist {
+    /// Swing angle θ ∈ [0, π] (rad): the angle between the twist axis `a` and `R a`.
+    pub swing: f64,
+    /// Twist angle φ ∈ (−π, π] (rad) about `a`.
+    pub twist: f64,
+    /// `θ̇ = swing_rate · ω` for the child angular velocity ω (child frame, the ball's v): the unit
+    /// swing axis, perpendicular to `a` and to `Rᵀ a`, seen in the child frame. Zero at θ = 0,
+    /// where the swing direction is undefined.
+    pub swing_rate: Vec3,
+    /// `φ̇ = twist_rate · ω` (child frame); equal to `a` at the neutral configuration.
+    pub twist_rate: Vec3,
+}
+
+/// Swing–twist decomposition of the unit quaternion `q = [x, y, z, w]` about the unit axis `a`:
+/// with `p = (x, y, z)·a`, the twist is `q_t = (w, p a)/√(w² + p²)` and the swing
+/// `q_s = q q_t⁻¹`, so `cos(θ/2) = √(w² + p²)` and `φ = 2 atan2(p, w)` (wrapped to (−π, π]).
+/// Their rates follow from `q̇ = ½ q ⊗ (0, ω)` (ω in the child frame):
+/// `φ̇ = ω·(w² a + w (a × u) + p u)/(w² + p²)` and
+/// `θ̇ = ω·(w u − p w a − p (a × u))/(√(w² + p²) sin(θ/2))` with `u = (x, y, z)`; the latter
+/// vector has unit length. Undefined (rates zero) only at θ = π exactly.
+pub fn swing_twist(q: &[f64], a: &Vec3) -> SwingTwist {
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let (u, w) = (Vec3::new(q[0], q[1], q[2]) / norm, q[3] / norm);
+    let p = u.dot(a);
+    let s2 = w * w + p * p;
+    let s = s2.sqrt().min(1.0);
+    let swing = 2.0 * s.acos();
+    let mut twist = 2.0 * p.atan2(w);
+    if twist > std::f64::consts::PI {
+        twist -= std::f64::consts::TAU;
+    } else if twist <= -std::f64::consts::PI {
+        twist += std::f64::consts::TAU;
+    }
+    let a_cross_u = a.cross(&u);
+    let half_sin = (1.0 - s2).max(0.0).sqrt();
+    let swing_rate = if half_sin > 1e-12 && s > 1e-12 {
+        (u * w - a * (p * w) - a_cross_u * p) / (s * half_sin)
+    } else {
+        Vec3::zeros()
+    };
+    let twist_rate = if s2 > 1e-24 { (a * (w * w) + a_cross_u * w + u * p) / s2 } else { Vec3::zeros() };
+    SwingTwist { swing, twist, swing_rate, twist_rate }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::UnitQuaternion;
+    use rand::{Rng, SeedableRng};
+
+    fn random_unit(rng: &mut rand::rngs::StdRng) -> Vec3 {
+        loop {
+            let v = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if v.norm() > 0.1 && v.norm() < 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+
+    fn xyzw(r: &UnitQuaternion<f64>) -> [f64; 4] {
+        [r.i, r.j, r.k, r.w]
+    }
+
+    #[test]
+    fn decomposition_recovers_known_swing_and_twist() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        for _ in 0..200 {
+            let a = random_unit(&mut rng);
+            // A swing axis perpendicular to a, a swing angle in [0, π) and a twist in (−π, π).
+            let s_axis = a.cross(&random_unit(&mut rng)).normalize();
+            let (theta, phi) = (rng.random_range(0.0..3.0), rng.random_range(-3.1..3.1));
+            let r =
+                UnitQuaternion::from_scaled_axis(s_axis * theta) * UnitQuaternion::from_scaled_axis(a * phi);
+            for sign in [1.0, -1.0] {
+                let q = xyzw(&r).map(|x| x * sign); // q and −q are the same rotation
+                let st = swing_twist(&q, &a);
+                assert!((st.swing - theta).abs() < 1e-9, "swing {} vs {theta}", st.swing);
+                assert!((st.twist - phi).abs() < 1e-9, "twist {} vs {phi}", st.twist);
+                // The swing angle is the angle between a and R a.
+                assert!((a.dot(&(r * a)).clamp(-1.0, 1.0).acos() - theta).abs() < 1e-9);
+            }
+        }
+    }
+
+    #[test]
+    fn rates_equal_finite_differences_and_swing_axis_is_perpendicular() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+        let eps = 1e-7;
+        for _ in 0..200 {
+            let a = random_unit(&mut rng);
+            let r = UnitQuaternion::from_scaled_axis(random_unit(&mut rng) * rng.random_range(0.05..2.9));
+            let omega = random_unit(&mut rng);
+            let q = xyzw(&r);
+            let st = swing_twist(&q, &a);
+            let ahead = swing_twist(&xyzw(&(r * UnitQuaternion::from_scaled_axis(omega * eps))), &a);
+            let behind = swing_twist(&xyzw(&(r * UnitQuaternion::from_scaled_axis(-omega * eps))), &a);
+            let fd_swing = (ahead.swing - behind.swing) / (2.0 * eps);
+            let fd_twist = (ahead.twist - behind.twist) / (2.0 * eps);
+            // Central differences of smooth functions: error O(eps²) plus rounding ~1e-16/eps.
+            assert!(
+                (st.swing_rate.dot(&omega) - fd_swing).abs() < 1e-6,
+                "{} vs {fd_swing}",
+                st.swing_rate.dot(&omega)
+            );
+            assert!(
+                (st.twist_rate.dot(&omega) - fd_twist).abs() < 1e-6,
+                "{} vs {fd_twist}",
+                st.twist_rate.dot(&omega)
+            );
+            assert!((st.swing_rate.norm() - 1.0).abs() < 1e-9);
+            // Perpendicular to the child's twist axis a and to the parent's seen from the child.
+            assert!(st.swing_rate.dot(&a).abs() < 1e-9);
+            assert!(st.swing_rate.dot(&(r.inverse() * a)).abs() < 1e-9);
+        }
+    }
+}

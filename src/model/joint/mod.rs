@@ -18,6 +18,8 @@ mod planar;
 mod slider;
 mod universal;
 
+pub use ball::{swing_twist, BallLimits, SwingTwist};
+
 use crate::math::{Motion, Transform, Vec3};
 use rand::Rng;
 
