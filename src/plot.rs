@@ -14,11 +14,7 @@ pub fn register_fonts() {
     ONCE.call_once(|| {
         // The font is a fixed, valid TrueType file; a failure here would be a packaging error
         // that the plot tests catch (text would be missing), so it is not worth an error type.
-        let _ = plotters::style::register_font(
-            "sans-serif",
-            plotters::style::FontStyle::Normal,
-            DEJAVU_SANS,
-        );
+        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, DEJAVU_SANS);
     });
 }
 
