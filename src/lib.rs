@@ -43,6 +43,7 @@ pub mod io;
 pub mod math;
 pub mod model;
 pub mod plot;
+pub mod report;
 pub mod scenes;
 pub mod solvers;
 pub mod state;

@@ -262,7 +262,12 @@ fn implicit_euler_is_stable_on_a_stiff_spring() {
                 break;
             }
         }
-        assert!(!(s.q[0].abs() < 1.0), "{} stayed bounded at ωh = 10: {}", explicit.name(), s.q[0]);
+        assert!(
+            s.q[0].is_nan() || s.q[0].abs() >= 1.0,
+            "{} stayed bounded at ωh = 10: {}",
+            explicit.name(),
+            s.q[0]
+        );
     }
 }
 

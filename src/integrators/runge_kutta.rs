@@ -237,7 +237,7 @@ impl DormandPrince45 {
             let remaining = t_end - state.t;
             let last = self.h >= remaining;
             let h = if last { remaining } else { self.h };
-            if !(h > 1e-14 * state.t.abs().max(1.0)) {
+            if h.is_nan() || h <= 1e-14 * state.t.abs().max(1.0) {
                 return Err(IntegratorError::StepSizeUnderflow { t: state.t, h });
             }
             let first_known = self.cache_valid
