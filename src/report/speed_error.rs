@@ -193,7 +193,8 @@ impl GoalPoint {
 pub struct SpeedErrorReport {
     /// Every finished measurement.
     pub rows: Vec<Measurement>,
-    /// Configurations that failed (diverged to a non-finite state): scene, configuration, dt, why.
+    /// Configurations that failed (diverged to a non-finite state) or were skipped as too
+    /// expensive: scene, configuration, dt, why.
     pub failed: Vec<(String, String, f64, String)>,
     /// MuJoCo's pendulum figures, when the peers' README was found.
     pub mujoco: Vec<PeerPoint>,
@@ -336,7 +337,20 @@ pub fn run(
                             ));
                         }
                     }
-                    Ok(None) => {}
+                    Ok(None) => {
+                        let per_sample = super::speed_error_scenes::SAMPLE_INTERVAL / dt;
+                        if (per_sample - per_sample.round()).abs() < 1e-9 {
+                            report.failed.push((
+                                scene.name.into(),
+                                kind.label(),
+                                dt,
+                                format!(
+                                    "skipped: more than {} dynamics evaluations",
+                                    super::speed_error_scenes::MAX_EVALUATIONS
+                                ),
+                            ));
+                        }
+                    }
                     Err(e) => report.failed.push((scene.name.into(), kind.label(), dt, e.to_string())),
                 }
             }
@@ -381,7 +395,7 @@ pub fn run(
     report.mujoco = read_mujoco_points(&options.peers_dir.join("README.md"));
     report.goal = goal_check(&report.rows, &report.mujoco);
     report.notes.push(format!(
-        "build: {}; {} timed repeat(s) per configuration, median",
+        "build: {}; up to {} timed repeat(s) per configuration (one for runs over 0.5 s), median",
         if cfg!(debug_assertions) { "debug (timings not representative)" } else { "release" },
         repeats
     ));
@@ -596,7 +610,7 @@ pub fn markdown(report: &SpeedErrorReport) -> String {
         let _ = writeln!(out);
     }
     if !report.failed.is_empty() {
-        let _ = writeln!(out, "## Failed (diverged)\n");
+        let _ = writeln!(out, "## Failed (diverged) or skipped\n");
         for (scene, cfg, dt, why) in &report.failed {
             let _ = writeln!(out, "- {scene}, {cfg}, dt = {}: {why}", dt_label(*dt));
         }

@@ -97,8 +97,16 @@ impl Trajectory {
     }
 }
 
-/// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme), `repeats`
-/// times, sampling every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the interval.
+/// Dynamics evaluations after which a smooth run is abandoned as too expensive for the report
+/// (the adaptive scheme at tight tolerances on the stiff chain).
+pub(crate) const MAX_EVALUATIONS: u64 = 1_000_000;
+
+/// A run that takes longer than this (s) is not repeated: its noise averages out over its steps.
+pub(crate) const LONG_RUN: f64 = 0.5;
+
+/// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme), up to
+/// `repeats` times, sampling every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the
+/// interval or the run needs more than [`MAX_EVALUATIONS`].
 pub(crate) fn run_smooth(
     scene: &SmoothScene,
     kind: IntegratorKind,
@@ -131,21 +139,30 @@ pub(crate) fn run_smooth(
         v.extend_from_slice(state.v.as_slice());
         let start = Instant::now();
         for k in 1..=samples {
-            if let Some(dopri) = dopri.as_mut() {
+            let evaluations = if let Some(dopri) = dopri.as_mut() {
                 dopri.advance_to(model, &mut data, &mut state, &tau, k as f64 * SAMPLE_INTERVAL)?;
+                crate::integrators::Integrator::evaluations(dopri)
             } else {
                 for _ in 0..per_sample {
                     fixed.step(model, &mut data, &mut state, &tau, dt)?;
                 }
+                fixed.evaluations()
+            };
+            if evaluations > MAX_EVALUATIONS {
+                return Ok(None);
             }
             q.extend_from_slice(state.q.as_slice());
             v.extend_from_slice(state.v.as_slice());
         }
         times.push(start.elapsed().as_secs_f64());
+        let long = times[times.len() - 1] > LONG_RUN;
         steps = match (&dopri, adaptive) {
             (Some(d), true) => d.stats().accepted,
             _ => (samples * per_sample) as u64,
         };
+        if long {
+            break;
+        }
     }
     let duration = samples as f64 * SAMPLE_INTERVAL;
     Ok(Some(Trajectory {
@@ -451,6 +468,7 @@ pub(crate) fn run_contact(
             }
         }
         times.push(start.elapsed().as_secs_f64());
+        let long = times[times.len() - 1] > LONG_RUN;
         let energy = (world.total_energy() - e0) / e0.abs().max(1e-12);
         result = Some(match scene {
             ContactScene::BouncingBall => {
@@ -471,6 +489,9 @@ pub(crate) fn run_contact(
             ContactScene::Stack10 => (drift, energy, penetration),
             ContactScene::FourBar => (closure.max(world.constraint_violation()), energy, 0.0),
         });
+        if long {
+            break;
+        }
     }
     let (error, energy, secondary) = result.unwrap_or((f64::NAN, f64::NAN, f64::NAN));
     Ok(ContactRun { error, energy, secondary, cost_us_per_s: median(&mut times) * 1e6 / (steps as f64 * dt) })
