@@ -56,6 +56,14 @@ pub enum ReportError {
     /// The collision geometry of a scene is invalid.
     #[error("collision: {0}")]
     Collision(#[from] crate::error::CollisionError),
+    /// The reference step does not divide the sample interval (a bug in the suite).
+    #[error("{scene}: the reference step {dt} s does not divide the sample interval")]
+    Reference {
+        /// Scene name.
+        scene: String,
+        /// Reference step (s).
+        dt: f64,
+    },
     /// Drawing the plot failed.
     #[error("plot {path}: {message}")]
     Plot {
@@ -315,7 +323,7 @@ pub fn run(
                     done as f64 / total as f64,
                 );
                 done += 1;
-                match run_smooth(scene, *kind, dt, repeats) {
+                match run_smooth(scene, *kind, dt, repeats, super::speed_error_scenes::MAX_EVALUATIONS) {
                     Ok(Some(run)) => {
                         let (error, energy, secondary) = smooth_errors(scene, &run, &reference);
                         if [error, energy, secondary, run.cost_us_per_s].iter().all(|x| x.is_finite()) {
@@ -403,8 +411,8 @@ pub fn run(
 }
 
 fn reference_run(scene: &SmoothScene, columns: usize, dt: f64) -> Result<Trajectory, ReportError> {
-    Ok(run_smooth(scene, IntegratorKind::GraggBulirschStoer { columns }, dt, 1)?
-        .expect("reference steps divide the sample interval"))
+    run_smooth(scene, IntegratorKind::GraggBulirschStoer { columns }, dt, 1, u64::MAX)?
+        .ok_or_else(|| ReportError::Reference { scene: scene.name.to_string(), dt })
 }
 
 /// The measure names of `scene`.

@@ -106,12 +106,13 @@ pub(crate) const LONG_RUN: f64 = 0.5;
 
 /// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme), up to
 /// `repeats` times, sampling every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the
-/// interval or the run needs more than [`MAX_EVALUATIONS`].
+/// interval or the run needs more than `budget` dynamics evaluations.
 pub(crate) fn run_smooth(
     scene: &SmoothScene,
     kind: IntegratorKind,
     dt: f64,
     repeats: usize,
+    budget: u64,
 ) -> Result<Option<Trajectory>, ReportError> {
     let model = &scene.model;
     let per_sample = (SAMPLE_INTERVAL / dt).round() as usize;
@@ -148,7 +149,7 @@ pub(crate) fn run_smooth(
                 }
                 fixed.evaluations()
             };
-            if evaluations > MAX_EVALUATIONS {
+            if evaluations > budget {
                 return Ok(None);
             }
             q.extend_from_slice(state.q.as_slice());
