@@ -38,6 +38,7 @@ pub mod collision;
 pub mod constraints;
 pub mod data;
 pub mod error;
+pub mod integrators;
 pub mod io;
 pub mod math;
 pub mod model;

@@ -158,3 +158,63 @@ fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown case `no_such_case`"));
 }
+
+#[test]
+fn report_speed_error_quick_writes_sane_files() {
+    let dir = std::env::temp_dir().join(format!("gelenk_speed_error_{}", std::process::id()));
+    let peers = shared_dir().join("peers");
+    let out = gelenk(&[
+        "report",
+        "speed-error",
+        "--quick",
+        "--out",
+        dir.to_str().unwrap(),
+        "--peers",
+        peers.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("goal"), "{stdout}");
+    let csv = std::fs::read_to_string(dir.join("speed_error.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "scene,configuration,dt_s,cost_us_per_sim_s,error,energy,secondary,pareto"
+    );
+    let mut scenes = std::collections::BTreeSet::new();
+    let mut rows = 0;
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        assert_eq!(cells.len(), 8, "{line}");
+        scenes.insert(cells[0].to_string());
+        let numbers: Vec<f64> = cells[2..7].iter().map(|c| c.parse().unwrap()).collect();
+        assert!(numbers.iter().all(|x| x.is_finite()), "{line}");
+        // dt in (0, 0.1] s, a positive cost below 10 s per simulated second, errors ≥ 0.
+        assert!(numbers[0] > 0.0 && numbers[0] <= 0.1, "{line}");
+        assert!(numbers[1] > 0.0 && numbers[1] < 1e7, "{line}");
+        assert!(numbers[2] >= 0.0 && numbers[4] >= 0.0, "{line}");
+        assert!(cells[7] == "true" || cells[7] == "false");
+        rows += 1;
+    }
+    assert!(rows >= 20, "{rows} rows");
+    for scene in
+        ["pendulum5", "dzhanibekov", "chain30", "bouncing_ball", "sliding_box", "stack10", "four_bar"]
+    {
+        assert!(scenes.contains(scene), "{scene} missing from {scenes:?}");
+    }
+    // On the pendulum, RK4 at 2 ms is far more accurate than semi-implicit Euler at 1 ms.
+    let error_of = |cfg: &str, dt: &str| -> f64 {
+        csv.lines()
+            .find(|l| l.starts_with(&format!("pendulum5,{cfg},{dt},")))
+            .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+            .unwrap_or_else(|| panic!("no pendulum5 row for {cfg} {dt}"))
+    };
+    assert!(error_of("RK4", "2e-3") < 1e-3 * error_of("semi-implicit Euler", "1e-3"));
+    let md = std::fs::read_to_string(dir.join("speed_error.md")).unwrap();
+    assert!(md.contains("MuJoCo") && md.contains("pendulum5") && md.contains('★'), "{md}");
+    let png = std::fs::read(dir.join("speed_error.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let svg = std::fs::read_to_string(dir.join("speed_error.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("Pareto front"));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -93,7 +93,8 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Run a report and write its tables.
+    /// Reports: `stability` (the hard-case table) and `speed-error` (error against cost of
+    /// integrators and solver settings).
     Report {
         #[command(subcommand)]
         what: ReportCommand,
@@ -138,6 +139,22 @@ enum ReportCommand {
         /// Only these time steps in s (default: 1/60, 1/240, 1/1000).
         #[arg(long, value_delimiter = ',')]
         dt: Vec<f64>,
+    },
+    /// Scenes × integrators × time steps (× solver settings for contact scenes): writes
+    /// speed_error.csv, speed_error.md, speed_error.png and speed_error.svg into OUT.
+    SpeedError {
+        /// Output directory.
+        #[arg(long, default_value = "speed-error-report")]
+        out: PathBuf,
+        /// A subset that runs in seconds.
+        #[arg(long)]
+        quick: bool,
+        /// Directory with pendulum5.xml and MuJoCo's figures (README.md).
+        #[arg(long, default_value = "../shared/peers")]
+        peers: PathBuf,
+        /// Timed repeats per configuration (median reported); default 3, 1 with --quick.
+        #[arg(long)]
+        repeats: Option<usize>,
     },
 }
 
@@ -199,6 +216,9 @@ fn main() -> ExitCode {
             report_stability(out.as_deref(), &cases, &solvers, &dt)
         }
         Command::Render { scene, out, frames, duration } => render(&scene, &out, frames, duration),
+        Command::Report { what: ReportCommand::SpeedError { out, quick, peers, repeats } } => {
+            report_speed_error(&out, quick, &peers, repeats)
+        }
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
         }
@@ -846,6 +866,61 @@ fn report_stability(
                 std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
             }
         }
+    }
+    Ok(())
+}
+
+fn report_speed_error(out: &Path, quick: bool, peers: &Path, repeats: Option<usize>) -> Result<(), String> {
+    use gelenk::report::speed_error;
+    use std::io::{IsTerminal, Write};
+    let options = speed_error::SpeedErrorOptions {
+        quick,
+        peers_dir: peers.to_path_buf(),
+        repeats: repeats.unwrap_or(if quick { 1 } else { 3 }),
+    };
+    let tty = std::io::stderr().is_terminal();
+    let report = speed_error::run(&options, |what, fraction| {
+        if tty {
+            let filled = (fraction * 30.0).round() as usize;
+            eprint!(
+                "\r[{}{}] {:3.0}% {:<60}",
+                "#".repeat(filled),
+                ".".repeat(30 - filled.min(30)),
+                fraction * 100.0,
+                what
+            );
+            let _ = std::io::stderr().flush();
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    if tty {
+        eprintln!();
+    }
+    speed_error::write(&report, out).map_err(|e| e.to_string())?;
+    println!(
+        "{} measurements ({} failed) written to {}",
+        report.rows.len(),
+        report.failed.len(),
+        out.display()
+    );
+    for g in &report.goal {
+        let ours = g.gelenk.as_ref().map_or("none reaches it".to_string(), |m| {
+            format!("{} dt={:.0e}: {:.0} µs at {:.1e} rad", m.configuration, m.dt, m.cost_us, m.error)
+        });
+        println!(
+            "MuJoCo {} dt={:.0e}: {:.0} µs per simulated s at {:.1e} rad | gelenk {ours} | ratio {:.2}",
+            g.mujoco.integrator,
+            g.mujoco.dt,
+            g.mujoco.cost_us,
+            g.mujoco.error,
+            g.ratio()
+        );
+    }
+    if !report.goal.is_empty() {
+        println!(
+            "goal (gelenk's best at most half of MuJoCo's best at every error level, pendulum): {}",
+            if report.goal_met() { "holds" } else { "does not hold" }
+        );
     }
     Ok(())
 }

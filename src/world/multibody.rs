@@ -1,11 +1,10 @@
 //! One multibody of a world: its model, data, state, applied forces, motors and the buffers of
 //! its share of a step.
 
-use crate::algorithms::{
-    aba, compute_joint_jacobians, crba, factor_mass_matrix, nonlinear_effects, solve_mass_matrix_slice,
-};
+use crate::algorithms::{aba, compute_joint_jacobians};
 use crate::data::Data;
 use crate::error::DynamicsError;
+use crate::integrators::implicit::{implicit_free_velocity, ImplicitTerms};
 use crate::math::Vec3;
 use crate::model::{Joint, Model};
 use crate::state::State;
@@ -102,8 +101,8 @@ pub struct Multibody {
     pub(crate) q_next: DVector<f64>,
     pub(crate) rhs: DVector<f64>,
     pub(crate) factored: bool,
-    /// Suspension dofs (hinge2 travel): (q index, v index, stiffness k, damping c).
-    suspensions: Vec<(usize, usize, f64, f64)>,
+    /// Joint damping and suspension springs, treated implicitly.
+    implicit_terms: ImplicitTerms,
 }
 
 impl Multibody {
@@ -112,16 +111,8 @@ impl Multibody {
         let data = Data::new(&model);
         let state = State::new(&model);
         let nb = model.nbodies();
-        let suspensions = (1..model.nbodies())
-            .filter_map(|i| match model.joint(i) {
-                Joint::Hinge2 { suspension: Some(s), .. } => {
-                    Some((model.idx_q(i), model.idx_v(i), s.stiffness, s.damping))
-                }
-                _ => None,
-            })
-            .collect();
         Self {
-            suspensions,
+            implicit_terms: ImplicitTerms::new(&model),
             data,
             state,
             tau: DVector::zeros(nv),
@@ -229,7 +220,6 @@ impl Multibody {
     /// springs and strong damping stay stable). With `need_factor` false and no implicit terms,
     /// ABA gives it in O(n) without M.
     pub(crate) fn free_motion(&mut self, h: f64, need_factor: bool) -> Result<(), DynamicsError> {
-        let nv = self.model.nv();
         if self.kinematic {
             self.v_free.copy_from(&self.state.v);
             self.factored = false;
@@ -237,17 +227,7 @@ impl Multibody {
         }
         self.rhs.copy_from(&self.tau);
         self.rhs += &self.tau_external;
-        let mut stiffness_terms = false;
-        for &(iq, iv, k, c) in &self.suspensions {
-            // Implicit in s: the spring acts at s + h·v⁺, whose h²K part moves to the left side.
-            self.rhs[iv] -= k * (self.state.q[iq] + h * self.state.v[iv]) + c * self.state.v[iv];
-            stiffness_terms = true;
-        }
-        let has_damping = self.model.damping().iter().any(|d| *d > 0.0);
-        for k in 0..nv {
-            self.rhs[k] -= self.model.damping()[k] * self.state.v[k];
-        }
-        if !need_factor && !stiffness_terms && !has_damping {
+        if !need_factor && self.implicit_terms.is_empty() {
             let a = aba(&self.model, &mut self.data, &self.state.q, &self.state.v, &self.rhs)?;
             self.v_free.copy_from(&self.state.v);
             self.v_free.axpy(h, a, 1.0);
@@ -255,20 +235,17 @@ impl Multibody {
             self.add_frame_rotation_terms(h);
             return Ok(());
         }
-        crba(&self.model, &mut self.data, &self.state.q)?;
-        nonlinear_effects(&self.model, &mut self.data, &self.state.q, &self.state.v)?;
-        self.rhs -= &self.data.nle;
-        for k in 0..nv {
-            self.data.mass_matrix[(k, k)] += h * self.model.damping()[k];
-        }
-        for &(_, iv, k, c) in &self.suspensions {
-            self.data.mass_matrix[(iv, iv)] += h * c + h * h * k;
-        }
-        factor_mass_matrix(&self.model, &mut self.data)?;
+        implicit_free_velocity(
+            &self.model,
+            &mut self.data,
+            &self.implicit_terms,
+            &self.state.q,
+            &self.state.v,
+            h,
+            &mut self.rhs,
+            &mut self.v_free,
+        )?;
         self.factored = true;
-        solve_mass_matrix_slice(&self.model, &self.data, self.rhs.as_mut_slice());
-        self.v_free.copy_from(&self.state.v);
-        self.v_free.axpy(h, &self.rhs, 1.0);
         self.add_frame_rotation_terms(h);
         Ok(())
     }

@@ -211,6 +211,40 @@ impl Joint {
         }
     }
 
+    /// The rate `Θ̇` of the chart coordinate Θ (`q = q₀ ⊕ Θ`, see [`Joint::integrate`] with unit
+    /// time) at which the joint moves with velocity `v` when it is at Θ:
+    /// `Θ̇ = dexp⁻¹₋Θ(v) = v + ½[Θ, v] + Σₖ B₂ₖ/(2k)! ad_Θ²ᵏ v` (Munthe-Kaas; Bernoulli numbers
+    /// B₂ₖ; the bracket of so(3), se(3) or se(2) for ball, free and planar joints). Joints whose
+    /// coordinates are Euclidean give `Θ̇ = v`. This lets Runge–Kutta stages combine tangent
+    /// vectors in one chart and leave the manifold only through [`Joint::integrate`].
+    /// The series converges for rotations |Θ| < 2π; it is summed to double precision for
+    /// |Θ| ≲ 1 rad, far above one time step's rotation.
+    pub fn chart_rate(&self, theta: &[f64], v: &[f64], out: &mut [f64]) {
+        let embed = |x: &[f64]| -> [f64; 6] {
+            match self {
+                Joint::Ball => [0.0, 0.0, 0.0, x[0], x[1], x[2]],
+                Joint::Free => [x[0], x[1], x[2], x[3], x[4], x[5]],
+                Joint::Planar => [x[0], x[1], 0.0, 0.0, 0.0, x[2]],
+                _ => [0.0; 6],
+            }
+        };
+        match self {
+            Joint::Ball | Joint::Free | Joint::Planar => {
+                let rate = se3_dexp_inv(&embed(theta), &embed(v));
+                match self {
+                    Joint::Ball => out.copy_from_slice(&rate[3..6]),
+                    Joint::Free => out.copy_from_slice(&rate),
+                    _ => {
+                        out[0] = rate[0];
+                        out[1] = rate[1];
+                        out[2] = rate[5];
+                    }
+                }
+            }
+            _ => out.copy_from_slice(v),
+        }
+    }
+
     /// `v_out = q1 ⊖ q0`: the constant velocity that moves `q0` to `q1` in unit time. Angles of
     /// hinges are real coordinates (not wrapped), so the difference is their plain difference.
     pub fn difference(&self, q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
@@ -292,4 +326,51 @@ pub(crate) fn read_quaternion(q: &[f64]) -> nalgebra::UnitQuaternion<f64> {
 /// Writes a unit quaternion as `[x, y, z, w]`.
 pub(crate) fn write_quaternion(r: &nalgebra::UnitQuaternion<f64>, out: &mut [f64]) {
     out.copy_from_slice(&[r.i, r.j, r.k, r.w]);
+}
+
+/// Bernoulli numbers over factorials, `B₂ₖ/(2k)!` for k = 1…10.
+const DEXP_INV_COEFFICIENTS: [f64; 10] = [
+    1.0 / 12.0,
+    -1.0 / 720.0,
+    1.0 / 30240.0,
+    -1.0 / 1209600.0,
+    1.0 / 47900160.0,
+    -691.0 / 1307674368000.0,
+    1.0 / 74724249600.0,
+    -3617.0 / 10670622842880000.0,
+    43867.0 / 5109094217170944000.0,
+    -174611.0 / 802857662698291200000.0,
+];
+
+/// The se(3) bracket `[x, y]` of twists `[v; ω]`: `(ω₁ × v₂ − ω₂ × v₁, ω₁ × ω₂)`.
+fn se3_bracket(x: &[f64; 6], y: &[f64; 6]) -> [f64; 6] {
+    let (v1, w1) = (Vec3::new(x[0], x[1], x[2]), Vec3::new(x[3], x[4], x[5]));
+    let (v2, w2) = (Vec3::new(y[0], y[1], y[2]), Vec3::new(y[3], y[4], y[5]));
+    let lin = w1.cross(&v2) - w2.cross(&v1);
+    let ang = w1.cross(&w2);
+    [lin.x, lin.y, lin.z, ang.x, ang.y, ang.z]
+}
+
+/// `dexp⁻¹₋Θ(v) = v + ½[Θ, v] + Σₖ B₂ₖ/(2k)! ad_Θ²ᵏ v` on se(3), summed until the terms vanish
+/// in double precision (at most 20 powers).
+fn se3_dexp_inv(theta: &[f64; 6], v: &[f64; 6]) -> [f64; 6] {
+    let norm = |x: &[f64; 6]| x.iter().map(|e| e * e).sum::<f64>().sqrt();
+    let mut out = *v;
+    let mut power = se3_bracket(theta, v);
+    for (o, p) in out.iter_mut().zip(&power) {
+        *o += 0.5 * p;
+    }
+    let floor = 1e-18 * norm(v);
+    for c in DEXP_INV_COEFFICIENTS {
+        let even = se3_bracket(theta, &power);
+        let term_norm = c.abs() * norm(&even);
+        for (o, p) in out.iter_mut().zip(&even) {
+            *o += c * p;
+        }
+        if term_norm <= floor {
+            break;
+        }
+        power = se3_bracket(theta, &even);
+    }
+    out
 }

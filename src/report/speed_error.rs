@@ -1,0 +1,627 @@
+//! `gelenk report speed-error`: error against cost for scenes × integrators × time steps
+//! (× solver settings for contact scenes), written as CSV, Markdown and a log–log plot with the
+//! Pareto front of each scene, beside MuJoCo's figures for the 5-link pendulum.
+//!
+//! - Smooth scenes (no contact), each stepped by every [`IntegratorKind`] at several steps:
+//!   `pendulum5` (../shared/peers/pendulum5.xml through the MJCF reader, hinges at 0.3 rad, 5 s;
+//!   error: largest joint-angle error at T, MuJoCo's measure; secondary: the largest over
+//!   samples every 40 ms; energy: (E(T) − E₀)/(E₀ − E_rest)),
+//!   `dzhanibekov` (free body near its intermediate axis, 20 s; error: relative flip-period
+//!   error; energy: relative kinetic-energy drift; secondary: relative angular-momentum drift)
+//!   and `chain30` (30 links, last 1000× heavier, 1 s; as the pendulum). The reference is
+//!   Gragg–Bulirsch–Stoer with 8 columns (order 16); the full report also runs it at half the
+//!   step and prints the difference, the reference's own error.
+//! - Contact scenes through the [`crate::world::World`] (its velocity-level step) with several
+//!   solver chains and steps: bouncing ball (apex after 1–3 bounces against ε²ⁿh), sliding box
+//!   (stopping distance against v₀²/(2μg)), 10-box stack (largest displacement; penetration),
+//!   four-bar linkage (largest loop-closure error).
+//!
+//! Cost is measured wall time of the stepping loop (median of the repeats) per simulated second.
+
+use super::speed_error_plot::plot;
+use super::speed_error_scenes::{
+    chain30, dzhanibekov, pendulum5, run_contact, run_smooth, smooth_errors, ContactScene, SmoothScene,
+    Trajectory,
+};
+use crate::error::{MjcfError, ModelError};
+use crate::integrators::{IntegratorError, IntegratorKind};
+use crate::world::{SolverKind, StepError};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// Why the report could not be made.
+#[derive(Debug, Error)]
+pub enum ReportError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The pendulum's MJCF could not be loaded.
+    #[error("pendulum5.xml: {0}")]
+    Mjcf(#[from] MjcfError),
+    /// A scene's model is invalid (a bug in the scene).
+    #[error("scene model: {0}")]
+    Model(#[from] ModelError),
+    /// The reference run failed.
+    #[error("integration: {0}")]
+    Integrator(#[from] IntegratorError),
+    /// A world could not be built or stepped.
+    #[error("world: {0}")]
+    Step(#[from] StepError),
+    /// The collision geometry of a scene is invalid.
+    #[error("collision: {0}")]
+    Collision(#[from] crate::error::CollisionError),
+    /// The reference step does not divide the sample interval (a bug in the suite).
+    #[error("{scene}: the reference step {dt} s does not divide the sample interval")]
+    Reference {
+        /// Scene name.
+        scene: String,
+        /// Reference step (s).
+        dt: f64,
+    },
+    /// Drawing the plot failed.
+    #[error("plot {path}: {message}")]
+    Plot {
+        /// The file.
+        path: String,
+        /// The backend's message.
+        message: String,
+    },
+}
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct SpeedErrorOptions {
+    /// A subset that runs in seconds (CI).
+    pub quick: bool,
+    /// Directory holding `pendulum5.xml` and MuJoCo's figures (`README.md`), normally
+    /// `../shared/peers`.
+    pub peers_dir: PathBuf,
+    /// Timed repeats per configuration; the median is reported.
+    pub repeats: usize,
+}
+
+/// One configuration at one step size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Measurement {
+    /// Scene name.
+    pub scene: String,
+    /// Integrator (smooth scenes) or solver chain (contact scenes).
+    pub configuration: String,
+    /// Time step (s); for the adaptive integrator the mean accepted step.
+    pub dt: f64,
+    /// Wall time per simulated second (µs).
+    pub cost_us: f64,
+    /// The scene's primary error (see [`SceneMeasures`]).
+    pub error: f64,
+    /// The scene's energy measure.
+    pub energy: f64,
+    /// The scene's secondary measure.
+    pub secondary: f64,
+}
+
+/// What the three measure columns mean for a scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneMeasures {
+    /// Scene name.
+    pub scene: &'static str,
+    /// The primary error (plotted).
+    pub error: &'static str,
+    /// The energy measure.
+    pub energy: &'static str,
+    /// The secondary measure.
+    pub secondary: &'static str,
+}
+
+/// The measures of every scene, in report order.
+pub const SCENES: [SceneMeasures; 7] = [
+    SceneMeasures {
+        scene: "pendulum5",
+        error: "max joint error at T (rad)",
+        energy: "energy drift (E(T)−E₀)/(E₀−E_rest)",
+        secondary: "max joint error over the run (rad)",
+    },
+    SceneMeasures {
+        scene: "dzhanibekov",
+        error: "flip period error (relative)",
+        energy: "kinetic energy drift (relative)",
+        secondary: "angular momentum drift (relative)",
+    },
+    SceneMeasures {
+        scene: "chain30",
+        error: "max joint error at T (rad)",
+        energy: "energy drift (E(T)−E₀)/(E₀−E_rest)",
+        secondary: "max joint error over the run (rad)",
+    },
+    SceneMeasures {
+        scene: "bouncing_ball",
+        error: "apex error vs ε²ⁿh, n ≤ 3 (relative)",
+        energy: "energy change (relative)",
+        secondary: "max penetration (m)",
+    },
+    SceneMeasures {
+        scene: "sliding_box",
+        error: "stopping distance error vs v₀²/(2μg) (relative)",
+        energy: "energy change (relative)",
+        secondary: "max penetration (m)",
+    },
+    SceneMeasures {
+        scene: "stack10",
+        error: "largest box displacement (m)",
+        energy: "energy change (relative)",
+        secondary: "max penetration (m)",
+    },
+    SceneMeasures {
+        scene: "four_bar",
+        error: "max loop-closure error (m)",
+        energy: "energy change (relative)",
+        secondary: "max penetration (m)",
+    },
+];
+
+/// One of MuJoCo's points for the pendulum (../shared/peers/README.md).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PeerPoint {
+    /// Integrator name as MuJoCo's table writes it.
+    pub integrator: String,
+    /// Time step (s).
+    pub dt: f64,
+    /// Milliseconds per simulated second, converted to µs.
+    pub cost_us: f64,
+    /// Relative energy drift.
+    pub energy: f64,
+    /// Max joint error (rad).
+    pub error: f64,
+}
+
+/// The goal check at one of MuJoCo's Pareto points: gelenk's cheapest configuration with an
+/// error no larger.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GoalPoint {
+    /// MuJoCo's point.
+    pub mujoco: PeerPoint,
+    /// gelenk's cheapest measurement at that error or better, if any.
+    pub gelenk: Option<Measurement>,
+}
+
+impl GoalPoint {
+    /// gelenk's cost over MuJoCo's (infinite when no gelenk configuration reaches the error).
+    pub fn ratio(&self) -> f64 {
+        self.gelenk.as_ref().map_or(f64::INFINITY, |g| g.cost_us / self.mujoco.cost_us)
+    }
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Default)]
+pub struct SpeedErrorReport {
+    /// Every finished measurement.
+    pub rows: Vec<Measurement>,
+    /// Configurations that failed (diverged to a non-finite state) or were skipped as too
+    /// expensive: scene, configuration, dt, why.
+    pub failed: Vec<(String, String, f64, String)>,
+    /// MuJoCo's pendulum figures, when the peers' README was found.
+    pub mujoco: Vec<PeerPoint>,
+    /// The goal check at each of MuJoCo's Pareto points.
+    pub goal: Vec<GoalPoint>,
+    /// Notes: reference accuracy, build profile.
+    pub notes: Vec<String>,
+    /// Whether this was the quick subset.
+    pub quick: bool,
+}
+
+impl SpeedErrorReport {
+    /// True when at every one of MuJoCo's Pareto points gelenk's best costs at most half.
+    pub fn goal_met(&self) -> bool {
+        !self.goal.is_empty() && self.goal.iter().all(|g| g.ratio() <= 0.5)
+    }
+}
+
+/// The integrators and steps of the smooth scenes.
+fn smooth_suite(quick: bool) -> Vec<(IntegratorKind, Vec<f64>)> {
+    use IntegratorKind::*;
+    if quick {
+        return vec![
+            (SemiImplicitEuler, vec![1e-2, 1e-3]),
+            (Rk4, vec![1e-2, 2e-3]),
+            (DormandPrince45 { rtol: 1e-6, atol: 1e-6 }, vec![0.04]),
+            (GraggBulirschStoer { columns: 6 }, vec![0.04]),
+        ];
+    }
+    let dopri = |tol: f64| (DormandPrince45 { rtol: tol, atol: tol }, vec![0.04]);
+    vec![
+        (ExplicitEuler, vec![1e-3, 2e-4, 1e-4]),
+        (SemiImplicitEuler, vec![2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4]),
+        (ImplicitEuler, vec![1e-2, 2e-3, 1e-3, 2e-4]),
+        (VelocityVerlet, vec![4e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4]),
+        (Rk4, vec![4e-2, 2e-2, 1e-2, 5e-3, 4e-3, 2e-3, 1e-3, 5e-4, 1e-4]),
+        dopri(1e-3),
+        dopri(1e-4),
+        dopri(1e-5),
+        dopri(1e-6),
+        dopri(1e-7),
+        dopri(1e-9),
+        dopri(1e-11),
+        (GraggBulirschStoer { columns: 2 }, vec![4e-2, 2e-2, 1e-2]),
+        (GraggBulirschStoer { columns: 3 }, vec![4e-2, 2e-2, 1e-2]),
+        (GraggBulirschStoer { columns: 4 }, vec![4e-2, 2e-2, 1e-2, 5e-3]),
+        (GraggBulirschStoer { columns: 6 }, vec![4e-2, 2e-2, 1e-2]),
+        (GraggBulirschStoer { columns: 8 }, vec![4e-2, 2e-2]),
+    ]
+}
+
+/// The solver chains and steps of the contact scenes.
+fn contact_suite(quick: bool) -> (Vec<(&'static str, Vec<SolverKind>)>, Vec<f64>) {
+    let pgs = |iterations| SolverKind::Pgs { iterations, omega: 1.0 };
+    if quick {
+        return (vec![("PGS 50", vec![pgs(50)])], vec![2e-3, 5e-3]);
+    }
+    (
+        vec![
+            ("PGS 10", vec![pgs(10)]),
+            ("PGS 50", vec![pgs(50)]),
+            ("PGS 100 → clarabel", vec![pgs(100), SolverKind::Clarabel]),
+            ("Lemke → clarabel", vec![SolverKind::Lemke { facets: 8 }, SolverKind::Clarabel]),
+        ],
+        vec![1e-3, 2e-3, 5e-3, 1e-2],
+    )
+}
+
+fn dt_label(dt: f64) -> String {
+    format!("{dt:.0e}").replace("e-", "e-")
+}
+
+/// Runs the suite; `progress(what, fraction)` is called before each configuration.
+pub fn run(
+    options: &SpeedErrorOptions,
+    mut progress: impl FnMut(&str, f64),
+) -> Result<SpeedErrorReport, ReportError> {
+    let quick = options.quick;
+    let repeats = options.repeats.max(1);
+    let mut report = SpeedErrorReport { quick, ..Default::default() };
+    let mut scenes: Vec<SmoothScene> = vec![pendulum5(&options.peers_dir)?, dzhanibekov()?, chain30()?];
+    if quick {
+        for s in &mut scenes {
+            s.duration = match s.name {
+                "pendulum5" => 5.0,
+                "dzhanibekov" => 10.0,
+                _ => 0.2,
+            };
+            s.reference_dt *= 2.0;
+        }
+    }
+    let suite = smooth_suite(quick);
+    let (chains, contact_dts) = contact_suite(quick);
+    let contact_scenes =
+        [ContactScene::BouncingBall, ContactScene::SlidingBox, ContactScene::Stack10, ContactScene::FourBar];
+    let total = scenes.len() * suite.iter().map(|(_, d)| d.len()).sum::<usize>()
+        + contact_scenes.len() * chains.len() * contact_dts.len();
+    let mut done = 0usize;
+    let columns = if quick { 6 } else { 8 };
+    for scene in &scenes {
+        progress(&format!("{}: reference", scene.name), done as f64 / total as f64);
+        let reference = reference_run(scene, columns, scene.reference_dt)?;
+        if !quick {
+            let half = reference_run(scene, columns, scene.reference_dt / 2.0)?;
+            let (e, _, s) = smooth_errors(scene, &half, &reference);
+            report.notes.push(format!(
+                "{}: reference GBS {columns} columns at dt = {}; against dt/2 it differs by {e:.1e} ({}) and {s:.1e} ({})",
+                scene.name,
+                dt_label(scene.reference_dt),
+                measures(scene.name).error,
+                measures(scene.name).secondary
+            ));
+        }
+        for (kind, dts) in &suite {
+            for &dt in dts {
+                progress(
+                    &format!("{} {} dt={}", scene.name, kind.label(), dt_label(dt)),
+                    done as f64 / total as f64,
+                );
+                done += 1;
+                match run_smooth(scene, *kind, dt, repeats, super::speed_error_scenes::MAX_EVALUATIONS) {
+                    Ok(Some(run)) => {
+                        let (error, energy, secondary) = smooth_errors(scene, &run, &reference);
+                        if [error, energy, secondary, run.cost_us_per_s].iter().all(|x| x.is_finite()) {
+                            report.rows.push(Measurement {
+                                scene: scene.name.to_string(),
+                                configuration: kind.label(),
+                                dt: run.mean_step,
+                                cost_us: run.cost_us_per_s,
+                                error,
+                                energy,
+                                secondary,
+                            });
+                        } else {
+                            report.failed.push((
+                                scene.name.into(),
+                                kind.label(),
+                                dt,
+                                "non-finite error".into(),
+                            ));
+                        }
+                    }
+                    Ok(None) => {
+                        let per_sample = super::speed_error_scenes::SAMPLE_INTERVAL / dt;
+                        if (per_sample - per_sample.round()).abs() < 1e-9 {
+                            report.failed.push((
+                                scene.name.into(),
+                                kind.label(),
+                                dt,
+                                format!(
+                                    "skipped: more than {} dynamics evaluations",
+                                    super::speed_error_scenes::MAX_EVALUATIONS
+                                ),
+                            ));
+                        }
+                    }
+                    Err(e) => report.failed.push((scene.name.into(), kind.label(), dt, e.to_string())),
+                }
+            }
+        }
+    }
+    for scene in contact_scenes {
+        for (label, chain) in &chains {
+            for &dt in &contact_dts {
+                progress(
+                    &format!("{} {label} dt={}", scene.name(), dt_label(dt)),
+                    done as f64 / total as f64,
+                );
+                done += 1;
+                match run_contact(scene, dt, chain, quick, repeats) {
+                    Ok(r)
+                        if [r.error, r.energy, r.secondary, r.cost_us_per_s]
+                            .iter()
+                            .all(|x| x.is_finite()) =>
+                    {
+                        report.rows.push(Measurement {
+                            scene: scene.name().to_string(),
+                            configuration: label.to_string(),
+                            dt,
+                            cost_us: r.cost_us_per_s,
+                            error: r.error,
+                            energy: r.energy,
+                            secondary: r.secondary,
+                        })
+                    }
+                    Ok(_) => report.failed.push((
+                        scene.name().into(),
+                        label.to_string(),
+                        dt,
+                        "non-finite error".into(),
+                    )),
+                    Err(e) => report.failed.push((scene.name().into(), label.to_string(), dt, e.to_string())),
+                }
+            }
+        }
+    }
+    progress("done", 1.0);
+    report.mujoco = read_mujoco_points(&options.peers_dir.join("README.md"));
+    report.goal = goal_check(&report.rows, &report.mujoco);
+    report.notes.push(format!(
+        "build: {}; up to {} timed repeat(s) per configuration (one for runs over 0.5 s), median",
+        if cfg!(debug_assertions) { "debug (timings not representative)" } else { "release" },
+        repeats
+    ));
+    Ok(report)
+}
+
+fn reference_run(scene: &SmoothScene, columns: usize, dt: f64) -> Result<Trajectory, ReportError> {
+    run_smooth(scene, IntegratorKind::GraggBulirschStoer { columns }, dt, 1, u64::MAX)?
+        .ok_or_else(|| ReportError::Reference { scene: scene.name.to_string(), dt })
+}
+
+/// The measure names of `scene`.
+pub fn measures(scene: &str) -> SceneMeasures {
+    SCENES.iter().copied().find(|m| m.scene == scene).unwrap_or(SceneMeasures {
+        scene: "",
+        error: "error",
+        energy: "energy",
+        secondary: "secondary",
+    })
+}
+
+/// Parses MuJoCo's "Speed against error" table of the peers' README (rows
+/// `| integrator | dt | ms per simulated s | energy drift | max joint error |`). Empty when the
+/// file or the table is missing.
+pub fn read_mujoco_points(readme: &Path) -> Vec<PeerPoint> {
+    let Ok(text) = std::fs::read_to_string(readme) else {
+        return Vec::new();
+    };
+    let Some(start) = text.find("## Speed against error") else {
+        return Vec::new();
+    };
+    let mut points = Vec::new();
+    for line in text[start..].lines().skip(1) {
+        if line.starts_with("## ") {
+            break;
+        }
+        let cells: Vec<&str> = line.trim().trim_matches('|').split('|').map(str::trim).collect();
+        if cells.len() != 5 {
+            continue;
+        }
+        let numbers: Vec<f64> =
+            cells[1..].iter().filter_map(|c| c.trim_start_matches('+').parse().ok()).collect();
+        if numbers.len() == 4 {
+            points.push(PeerPoint {
+                integrator: cells[0].to_string(),
+                dt: numbers[0],
+                cost_us: numbers[1] * 1e3,
+                energy: numbers[2],
+                error: numbers[3],
+            });
+        }
+    }
+    points
+}
+
+/// The Pareto front of (cost, error) points: indices sorted by cost, each with an error below
+/// every cheaper one's.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&a, &b| points[a].0.total_cmp(&points[b].0).then(points[a].1.total_cmp(&points[b].1)));
+    let mut best = f64::INFINITY;
+    let mut front = Vec::new();
+    for i in order {
+        if points[i].1 < best {
+            best = points[i].1;
+            front.push(i);
+        }
+    }
+    front
+}
+
+fn goal_check(rows: &[Measurement], mujoco: &[PeerPoint]) -> Vec<GoalPoint> {
+    let peer: Vec<(f64, f64)> = mujoco.iter().map(|p| (p.cost_us, p.error)).collect();
+    let ours: Vec<&Measurement> = rows.iter().filter(|r| r.scene == "pendulum5").collect();
+    pareto_front(&peer)
+        .into_iter()
+        .map(|i| {
+            let m = &mujoco[i];
+            let best = ours
+                .iter()
+                .filter(|r| r.error <= m.error)
+                .min_by(|a, b| a.cost_us.total_cmp(&b.cost_us))
+                .map(|r| (*r).clone());
+            GoalPoint { mujoco: m.clone(), gelenk: best }
+        })
+        .collect()
+}
+
+/// Writes `speed_error.csv`, `speed_error.md`, `speed_error.png` and `speed_error.svg` into
+/// `dir` (created if missing).
+pub fn write(report: &SpeedErrorReport, dir: &Path) -> Result<(), ReportError> {
+    let io = |path: &Path| {
+        let path = path.display().to_string();
+        move |source| ReportError::Io { path, source }
+    };
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let csv_path = dir.join("speed_error.csv");
+    std::fs::write(&csv_path, csv(report)).map_err(io(&csv_path))?;
+    let md_path = dir.join("speed_error.md");
+    std::fs::write(&md_path, markdown(report)).map_err(io(&md_path))?;
+    plot(report, &dir.join("speed_error.png"), &dir.join("speed_error.svg"))
+}
+
+/// The CSV: one row per measurement.
+pub fn csv(report: &SpeedErrorReport) -> String {
+    let mut out = String::from("scene,configuration,dt_s,cost_us_per_sim_s,error,energy,secondary,pareto\n");
+    for m in &report.rows {
+        let _ = writeln!(
+            out,
+            "{},{},{:e},{:.3},{:e},{:e},{:e},{}",
+            m.scene,
+            m.configuration,
+            m.dt,
+            m.cost_us,
+            m.error,
+            m.energy,
+            m.secondary,
+            on_front(report, m)
+        );
+    }
+    out
+}
+
+fn on_front(report: &SpeedErrorReport, m: &Measurement) -> bool {
+    let scene: Vec<&Measurement> = report.rows.iter().filter(|r| r.scene == m.scene).collect();
+    let points: Vec<(f64, f64)> = scene.iter().map(|r| (r.cost_us, r.error)).collect();
+    pareto_front(&points).into_iter().any(|i| scene[i] == m)
+}
+
+fn fmt_cost(us: f64) -> String {
+    if us >= 1000.0 {
+        format!("{:.2} ms", us / 1000.0)
+    } else {
+        format!("{us:.0} µs")
+    }
+}
+
+/// The Markdown report: the goal check on the pendulum, then one table per scene.
+pub fn markdown(report: &SpeedErrorReport) -> String {
+    let mut out = String::new();
+    let command =
+        if report.quick { "gelenk report speed-error --quick" } else { "gelenk report speed-error" };
+    let _ = writeln!(out, "# Speed against error\n\nMade by `{command}`. Cost: wall time of the stepping loop per simulated second (median of the repeats); ★ marks the Pareto front of each scene.\n");
+    for note in &report.notes {
+        let _ = writeln!(out, "- {note}");
+    }
+    let _ = writeln!(out, "\n## Pendulum (pendulum5.xml): gelenk beside MuJoCo\n");
+    if report.mujoco.is_empty() {
+        let _ = writeln!(out, "MuJoCo's figures were not found (peers/README.md).\n");
+    } else {
+        let _ = writeln!(out, "| MuJoCo integrator | dt | MuJoCo cost | max joint error | energy drift | gelenk's cheapest at that error or better | gelenk cost | gelenk error | cost ratio |");
+        let _ = writeln!(out, "|---|---|---:|---:|---:|---|---:|---:|---:|");
+        for p in &report.mujoco {
+            let g = report.goal.iter().find(|g| g.mujoco == *p);
+            let ours = report
+                .rows
+                .iter()
+                .filter(|r| r.scene == "pendulum5" && r.error <= p.error)
+                .min_by(|a, b| a.cost_us.total_cmp(&b.cost_us));
+            let (cfg, cost, err, ratio) = match ours {
+                Some(r) => (
+                    format!("{} dt = {}", r.configuration, dt_label(r.dt)),
+                    fmt_cost(r.cost_us),
+                    format!("{:.1e}", r.error),
+                    format!("{:.2}", r.cost_us / p.cost_us),
+                ),
+                None => ("none reaches it".into(), "—".into(), "—".into(), "—".into()),
+            };
+            let _ = writeln!(
+                out,
+                "| {}{} | {} | {} | {:.1e} | {:+.1e} | {cfg} | {cost} | {err} | {ratio} |",
+                p.integrator,
+                if g.is_some() { " ★" } else { "" },
+                dt_label(p.dt),
+                fmt_cost(p.cost_us),
+                p.error,
+                p.energy
+            );
+        }
+        let verdict = if report.goal_met() { "holds" } else { "does not hold" };
+        let worst = report.goal.iter().map(GoalPoint::ratio).fold(0.0, f64::max);
+        let _ = writeln!(
+            out,
+            "\nGoal \"at every error level gelenk's best costs at most half of MuJoCo's best\", checked at MuJoCo's Pareto points (★): **{verdict}** (largest cost ratio {worst:.2}). MuJoCo's figures are from ../shared/peers/README.md (same machine kind, another run: ratios carry ±25 %).\n"
+        );
+    }
+    for scene in SCENES {
+        let rows: Vec<&Measurement> = report.rows.iter().filter(|r| r.scene == scene.scene).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let _ = writeln!(out, "## {}\n", scene.scene);
+        let _ = writeln!(
+            out,
+            "| configuration | dt | cost per simulated s | {} | {} | {} |",
+            scene.error, scene.energy, scene.secondary
+        );
+        let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+        for m in rows {
+            let star = if on_front(report, m) { " ★" } else { "" };
+            let _ = writeln!(
+                out,
+                "| {}{star} | {} | {} | {:.2e} | {:+.2e} | {:.2e} |",
+                m.configuration,
+                dt_label(m.dt),
+                fmt_cost(m.cost_us),
+                m.error,
+                m.energy,
+                m.secondary
+            );
+        }
+        let _ = writeln!(out);
+    }
+    if !report.failed.is_empty() {
+        let _ = writeln!(out, "## Failed (diverged) or skipped\n");
+        for (scene, cfg, dt, why) in &report.failed {
+            let _ = writeln!(out, "- {scene}, {cfg}, dt = {}: {why}", dt_label(*dt));
+        }
+    }
+    out
+}
