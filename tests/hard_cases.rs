@@ -223,3 +223,54 @@ fn a_hundred_link_chain_with_a_thousandfold_end_mass_keeps_its_energy_with_rk4()
     println!("100-link chain, 1000:1 end mass, RK4 h = 1e-4 s, 1 s: max |ΔE/E| = {worst:e}");
     assert!(worst < 1e-6, "|ΔE/E| = {worst:e}");
 }
+
+#[test]
+fn dzhanibekov_spin_keeps_momentum_and_energy_with_rk4() {
+    // The criterion (|ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 % of a reference)
+    // with gelenk::integrators::Rk4 on the free joint, outside the world (no contact): the
+    // world's semi-implicit step fails it (see dzhanibekov in the stability table).
+    use gelenk::integrators::{Integrator, Rk4};
+    use gelenk::math::{Transform, Vec3};
+    use gelenk::model::{BodySpec, Joint, ModelBuilder, RigidInertia};
+    let inertia = stability::t_body_inertia();
+    let omega0 = Vec3::new(10.0, 1.0, 0.0);
+    let mut b = ModelBuilder::new();
+    b.add_body(BodySpec::new(
+        "T",
+        "universe",
+        Joint::Free,
+        Transform::identity(),
+        RigidInertia::new(2.0, Vec3::zeros(), inertia),
+    ));
+    let mut model = b.build().unwrap();
+    model.set_gravity(Vec3::zeros());
+    let mut data = gelenk::Data::new(&model);
+    let mut state = gelenk::State::new(&model);
+    state.v.rows_mut(3, 3).copy_from(&omega0);
+    let angular = |s: &gelenk::State| {
+        let q = &s.q;
+        let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]));
+        let omega: Vec3 = s.v.fixed_rows::<3>(3).into();
+        (r * (inertia * omega), 0.5 * omega.dot(&(inertia * omega)), omega.x)
+    };
+    let (l0, e0, _) = angular(&state);
+    let (h, duration) = (1e-3, 10.0);
+    let tau = nalgebra::DVector::zeros(model.nv());
+    let mut rk4 = Rk4::new(&model);
+    let (mut dl, mut de, mut last, mut crossings) = (0.0f64, 0.0f64, omega0.x, Vec::new());
+    for k in 0..(duration / h) as usize {
+        rk4.step(&model, &mut data, &mut state, &tau, h).unwrap();
+        let (l, e, wx) = angular(&state);
+        dl = dl.max((l - l0).norm() / l0.norm());
+        de = de.max((e - e0).abs() / e0);
+        if wx.signum() != last.signum() {
+            crossings.push((k as f64 + last / (last - wx)) * h);
+        }
+        last = wx;
+    }
+    let period = 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    let reference = stability::dzhanibekov_reference_period(&inertia, omega0, duration).unwrap();
+    println!("Dzhanibekov, RK4 h = 1 ms, 10 s: |ΔL|/L {dl:e}, |ΔE|/E {de:e}, period {period} vs {reference}");
+    assert!(dl < 1e-6 && de < 1e-6, "|ΔL|/L {dl:e}, |ΔE|/E {de:e}");
+    assert!((period / reference - 1.0).abs() < 0.01, "period {period} vs {reference}");
+}
