@@ -201,6 +201,13 @@ enum BenchCommand {
 }
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, so `gelenk simulate … | head` would make println! panic once the
+    // reader closes the pipe; the default action ends the program quietly, as Unix tools do.
+    #[cfg(unix)]
+    // SAFETY: called before any other thread exists; SIG_DFL is a valid handler for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect { model, floating, json } => inspect(&model, floating, json),
