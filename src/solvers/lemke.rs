@@ -134,10 +134,49 @@ pub fn lcp_of(problem: &ConstraintProblem, facets: usize) -> Lcp {
     Lcp { m: mm, q, c, c0 }
 }
 
-/// Solves the LCP `w = M z + q ⟂ z ≥ 0` by Lemke's method; returns z and the number of pivots.
+/// Solves the LCP `w = M z + q ⟂ z ≥ 0` by Lemke's method; returns z and the number of pivots
+/// (over all attempts). The covering vector of ones comes first; if that path ends on a ray or
+/// at the pivot limit, which rounding can cause on degenerate problems (a box's four coplanar
+/// corners make its normal rows dependent), the method restarts with two other positive
+/// covering vectors: a different path to the same solution set (Cottle, Pang & Stone §4.4).
 pub fn lemke(
     m: &DMatrix<f64>,
     q: &DVector<f64>,
+    options: &LemkeOptions,
+) -> Result<(DVector<f64>, usize), SolverError> {
+    let n = q.len();
+    if m.shape() != (n, n) {
+        return Err(SolverError::InvalidProblem(format!("M is {:?}, q has {n} entries", m.shape())));
+    }
+    let golden = |i: usize| ((i as f64 + 1.0) * 0.618_033_988_749_895).fract();
+    let coverings = [
+        DVector::from_element(n, 1.0),
+        DVector::from_fn(n, |i, _| 1.0 + golden(i)),
+        DVector::from_fn(n, |i, _| m[(i, i)].abs().max(1e-3 * m.amax()).max(f64::MIN_POSITIVE)),
+    ];
+    let mut total = 0;
+    let mut last_error = None;
+    for d in &coverings {
+        match lemke_with_covering(m, q, d, options) {
+            Ok((z, pivots)) => return Ok((z, total + pivots)),
+            Err(e @ (SolverError::LemkeRay { .. } | SolverError::PivotLimit { .. })) => {
+                total += match e {
+                    SolverError::LemkeRay { pivots } | SolverError::PivotLimit { pivots } => pivots,
+                    _ => 0,
+                };
+                last_error = Some(e);
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last_error.unwrap_or(SolverError::PivotLimit { pivots: total }))
+}
+
+/// Lemke's method with the covering vector `d` (all entries positive).
+fn lemke_with_covering(
+    m: &DMatrix<f64>,
+    q: &DVector<f64>,
+    d: &DVector<f64>,
     options: &LemkeOptions,
 ) -> Result<(DVector<f64>, usize), SolverError> {
     let n = q.len();
@@ -150,7 +189,7 @@ pub fn lemke(
     let scale = m.amax().max(1.0);
     let pivot_eps = options.pivot_tolerance * scale;
     let max_pivots = if options.max_pivots == 0 { 50 * n + 100 } else { options.max_pivots };
-    // Variables: w_i = i, z_j = n + j, z0 = 2n. Columns of [I, −M, −d] with d = 1.
+    // Variables: w_i = i, z_j = n + j, z0 = 2n. Columns of [I, −M, −d].
     let z0 = 2 * n;
     let mut basis: Vec<usize> = (0..n).collect();
     let mut b_inv = DMatrix::<f64>::identity(n, n);
@@ -162,13 +201,11 @@ pub fn lemke(
         } else if var < 2 * n {
             out.gemv(-1.0, b_inv, &m.column(var - n), 0.0);
         } else {
-            for i in 0..n {
-                out[i] = -b_inv.row(i).sum();
-            }
+            out.gemv(-1.0, b_inv, d, 0.0);
         }
     };
-    // First pivot: z0 enters, the row of the most negative q leaves (ties: lowest index).
-    let mut row = (0..n).min_by(|&a, &b| q[a].total_cmp(&q[b])).unwrap_or(0);
+    // First pivot: z0 enters, the row of the most negative q_i / d_i leaves (ties: lowest index).
+    let mut row = (0..n).min_by(|&a, &b| (q[a] / d[a]).total_cmp(&(q[b] / d[b]))).unwrap_or(0);
     let mut entering = z0;
     for pivots in 0..=max_pivots {
         if pivots > 0 {
