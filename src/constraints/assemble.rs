@@ -1,11 +1,10 @@
 //! Assembly: rows collected by a [`ProblemBuilder`] become a [`ConstraintProblem`] with the
-//! Delassus matrix `A = J M⁻¹ Jᵀ` computed from the factor of M (one tree-sparse solve per row,
-//! never forming M⁻¹).
+//! Delassus matrix `A = J M⁻¹ Jᵀ` computed from the tree-sparse factor of M (never forming M⁻¹):
+//! A = W Wᵀ with W = J L⁻¹ D^{-1/2}, whose rows keep the sparsity of J's rows.
 
 use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin};
-use crate::algorithms::solve_mass_matrix_slice;
 use crate::data::Data;
-use crate::model::Model;
+use crate::model::{Model, NO_DOF};
 use nalgebra::{DMatrix, DVector};
 
 /// Collects constraint rows (Jacobian row, law, target velocity, softness) for one step.
@@ -108,29 +107,31 @@ impl ProblemBuilder {
         &self.rows[i * self.nv..(i + 1) * self.nv]
     }
 
-    /// Builds the problem into `problem` with `minv` applying M⁻¹ in place to a vector of nv
-    /// entries, and `v_free` the free velocity (one velocity block).
-    pub fn build_into(
-        &self,
-        v_free: &DVector<f64>,
-        mut minv: impl FnMut(&mut [f64]),
-        problem: &mut ConstraintProblem,
-    ) {
+    /// Builds the problem into `problem` for one multibody whose mass matrix is factored in
+    /// `factor` (one velocity block), `v_free` its free velocity.
+    pub fn build_into(&self, v_free: &DVector<f64>, factor: TreeFactor<'_>, problem: &mut ConstraintProblem) {
         let blocks = [(0, self.nv)];
-        self.build_into_blocks(v_free, &blocks, |_, x| minv(x), true, problem);
+        self.build_into_blocks(v_free, &blocks, |_| Some((factor, 0)), true, problem);
     }
 
     /// Builds the problem into `problem` for a block-diagonal M: `blocks[b]` = (first column,
-    /// width) of block b (a multibody), and `minv(b, x)` applies block b's M⁻¹ in place to its
-    /// slice `x`. Rows touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block,
-    /// and the block structure is kept in [`ConstraintProblem::sparsity`]. With `dense` false,
-    /// the dense `jacobian` and `minv_jt` are left empty (the sparse segments hold them; use
+    /// width) of block b (a multibody, or one root subtree of a multibody), and `factor_of(b)`
+    /// gives the factor of the multibody holding block b with the index of the block's first
+    /// dof in that multibody's numbering (None: the block cannot move, M⁻¹ = 0 there). Rows
+    /// touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block, and the block
+    /// structure is kept in [`ConstraintProblem::sparsity`]. With `dense` false, the dense
+    /// `jacobian` and `minv_jt` are left empty (the sparse segments hold them; use
     /// [`ConstraintProblem::apply_impulses`]) — the stepping path, which never needs them.
-    pub fn build_into_blocks(
+    ///
+    /// With M = Lᵀ D L (RBDA §6.5), A = W Wᵀ for W = J L⁻¹ D^{-1/2}. A row of J acting on a body
+    /// is non-zero only on the dofs of the body's path to the root, and L⁻ᵀ keeps that pattern
+    /// (Featherstone, "Exploiting sparsity in operational-space dynamics", 2010): each row of W
+    /// costs O(path · depth), each entry of A a dot product over the span its two rows share.
+    pub fn build_into_blocks<'f>(
         &self,
         v_free: &DVector<f64>,
         blocks: &[(usize, usize)],
-        mut minv: impl FnMut(usize, &mut [f64]),
+        factor_of: impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
         dense: bool,
         problem: &mut ConstraintProblem,
     ) {
@@ -146,7 +147,7 @@ impl ProblemBuilder {
             problem.bias = DVector::zeros(n);
             problem.target = DVector::zeros(n);
         }
-        // Which blocks each row touches, with the row's J and M⁻¹Jᵀ entries on each.
+        // Which blocks each row touches, with the row's J, W and M⁻¹Jᵀ entries on each.
         let sp = &mut problem.sparsity;
         sp.nv = nv;
         sp.blocks.clear();
@@ -154,21 +155,26 @@ impl ProblemBuilder {
         sp.row_start.clear();
         sp.blocks_of_row.clear();
         sp.segment_start.clear();
-        sp.j_values.clear();
-        sp.x_values.clear();
+        sp.segment_span.clear();
+        sp.w_values.clear();
         sp.row_start.push(0);
         for i in 0..n {
             let row = self.row(i);
             for (b, &(col, width)) in blocks.iter().enumerate() {
                 let segment = &row[col..col + width];
-                if segment.iter().any(|x| *x != 0.0) {
-                    sp.blocks_of_row.push(b);
-                    sp.segment_start.push(sp.j_values.len());
-                    sp.j_values.extend_from_slice(segment);
-                    let x_start = sp.x_values.len();
-                    sp.x_values.extend_from_slice(segment);
-                    minv(b, &mut sp.x_values[x_start..]);
-                }
+                let Some(last) = segment.iter().rposition(|x| *x != 0.0) else { continue };
+                sp.blocks_of_row.push(b);
+                let start = sp.w_values.len();
+                sp.segment_start.push(start);
+                sp.w_values.extend_from_slice(segment);
+                let span = match factor_of(b) {
+                    Some((factor, first_dof)) => factor.scale_row(first_dof, last, &mut sp.w_values[start..]),
+                    None => {
+                        sp.w_values[start..].fill(0.0);
+                        (0, 0)
+                    }
+                };
+                sp.segment_span.push(span);
             }
             sp.row_start.push(sp.blocks_of_row.len());
         }
@@ -185,12 +191,15 @@ impl ProblemBuilder {
         sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
         sp.segment_of_block_row.clear();
         sp.segment_of_block_row.resize(sp.blocks_of_row.len(), 0);
+        sp.span_of_block_row.clear();
+        sp.span_of_block_row.resize(sp.blocks_of_row.len(), (0, 0));
         for i in 0..n {
             for e in sp.row_start[i]..sp.row_start[i + 1] {
                 let b = sp.blocks_of_row[e];
                 // block_start[b] is used as the fill cursor, then restored below.
                 sp.rows_of_block[sp.block_start[b]] = i;
                 sp.segment_of_block_row[sp.block_start[b]] = sp.segment_start[e];
+                sp.span_of_block_row[sp.block_start[b]] = sp.segment_span[e];
                 sp.block_start[b] += 1;
             }
         }
@@ -199,34 +208,39 @@ impl ProblemBuilder {
         }
         sp.block_start[0] = 0;
         // Dense J and M⁻¹Jᵀ (for export and inspection), if asked.
-        problem.minv_jt.fill(0.0);
-        for i in (0..n).filter(|_| dense) {
-            let row = self.row(i);
-            for (k, &x) in row.iter().enumerate() {
-                problem.jacobian[(i, k)] = x;
-            }
-        }
-        for i in (0..n).filter(|_| dense) {
-            let sp = &problem.sparsity;
-            for e in sp.row_start[i]..sp.row_start[i + 1] {
-                let (col, width) = sp.blocks[sp.blocks_of_row[e]];
-                let start = sp.segment_start[e];
-                for k in 0..width {
-                    problem.minv_jt[(col + k, i)] = sp.x_values[start + k];
+        if dense {
+            problem.minv_jt.fill(0.0);
+            for i in 0..n {
+                problem.jacobian.row_mut(i).copy_from_slice(self.row(i));
+                let sp = &problem.sparsity;
+                for e in sp.row_start[i]..sp.row_start[i + 1] {
+                    let (col, width) = sp.blocks[sp.blocks_of_row[e]];
+                    let (start, (lo, hi)) = (sp.segment_start[e], sp.segment_span[e]);
+                    // Column i of the column-major nv × n matrix, on the block's rows.
+                    let x = &mut problem.minv_jt.as_mut_slice()[i * nv + col..i * nv + col + width];
+                    x[lo..hi].copy_from_slice(&sp.w_values[start + lo..start + hi]);
+                    if let Some((factor, first_dof)) = factor_of(sp.blocks_of_row[e]) {
+                        factor.unscale_solve(first_dof, x);
+                    }
                 }
             }
         }
-        // A = J (M⁻¹Jᵀ): per block, over the pairs of rows touching it (other blocks give zero).
+        // A = W Wᵀ: per block, over the pairs of rows touching it (other blocks give zero),
+        // each dot product over the span where both rows' W can be non-zero.
         problem.delassus.fill(0.0);
         let sp = &problem.sparsity;
-        for (b, &(_, width)) in blocks.iter().enumerate() {
+        for b in 0..blocks.len() {
             let range = sp.block_start[b]..sp.block_start[b + 1];
-            let (rows, segments) = (&sp.rows_of_block[range.clone()], &sp.segment_of_block_row[range]);
-            for (p, (&i, &si)) in rows.iter().zip(segments).enumerate() {
-                let ji = &sp.j_values[si..si + width];
-                for (&j, &sj) in rows[..=p].iter().zip(segments) {
-                    let xj = &sp.x_values[sj..sj + width];
-                    let a: f64 = ji.iter().zip(xj).map(|(p, q)| p * q).sum();
+            let rows = &sp.rows_of_block[range.clone()];
+            let segments = &sp.segment_of_block_row[range.clone()];
+            let spans = &sp.span_of_block_row[range];
+            for (p, ((&i, &si), &(lo_i, hi_i))) in rows.iter().zip(segments).zip(spans).enumerate() {
+                for ((&j, &sj), &(lo_j, hi_j)) in rows[..=p].iter().zip(segments).zip(spans) {
+                    let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
+                    if lo >= hi {
+                        continue;
+                    }
+                    let a = dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
                     problem.delassus[(i, j)] += a;
                     if i != j {
                         problem.delassus[(j, i)] += a;
@@ -265,5 +279,80 @@ pub fn assemble_single(
     v_free: &DVector<f64>,
     problem: &mut ConstraintProblem,
 ) {
-    builder.build_into(v_free, |x| solve_mass_matrix_slice(model, data, x), problem);
+    builder.build_into(v_free, TreeFactor::new(model, data), problem);
+}
+
+/// The tree-sparse factor M = Lᵀ D L of one multibody ([`crate::algorithms::factor_mass_matrix`]):
+/// L's entries below the diagonal and D on the diagonal of `factor`, `dof_parent` the tree.
+#[derive(Clone, Copy, Debug)]
+pub struct TreeFactor<'a> {
+    factor: &'a DMatrix<f64>,
+    dof_parent: &'a [usize],
+}
+
+impl<'a> TreeFactor<'a> {
+    /// The factor held in `data` (`data.mass_matrix_factor` must be current).
+    pub fn new(model: &'a Model, data: &'a Data) -> Self {
+        Self { factor: &data.mass_matrix_factor, dof_parent: &model.dof_parent }
+    }
+
+    /// For one row segment J (on the dofs `first_dof..first_dof + w.len()` of a block that is a
+    /// union of whole root subtrees, `w` holding J on entry, `last` its last non-zero entry):
+    /// writes w = D^{-1/2} L⁻ᵀ Jᵀ and returns the span [lo, hi) outside which w is zero.
+    fn scale_row(&self, first_dof: usize, last: usize, w: &mut [f64]) -> (usize, usize) {
+        let (h, parent) = (self.factor, self.dof_parent);
+        // w ← L⁻ᵀ w, walking each non-zero entry's ancestors (they have lower indices).
+        for k in (0..=last).rev() {
+            let wk = w[k];
+            if wk == 0.0 {
+                continue;
+            }
+            let (mut j, row) = (parent[first_dof + k], first_dof + k);
+            while j != NO_DOF {
+                w[j - first_dof] -= h[(row, j)] * wk;
+                j = parent[j];
+            }
+        }
+        let Some(lo) = w[..=last].iter().position(|x| *x != 0.0) else { return (0, 0) };
+        for k in lo..=last {
+            w[k] /= h[(first_dof + k, first_dof + k)].sqrt();
+        }
+        (lo, last + 1)
+    }
+
+    /// x ← L⁻¹ D^{-1/2} x on a block's slice (the inverse map of [`Self::scale_row`]'s, so
+    /// that M⁻¹Jᵀλ = L⁻¹ D^{-1/2} Wᵀλ).
+    pub fn unscale_solve(&self, first_dof: usize, x: &mut [f64]) {
+        let (h, parent) = (self.factor, self.dof_parent);
+        let Some(lo) = x.iter().position(|x| *x != 0.0) else { return };
+        // Entries below lo stay zero: no dof there has an ancestor at or above lo.
+        for k in lo..x.len() {
+            let row = first_dof + k;
+            let mut xk = x[k] / h[(row, row)].sqrt();
+            let mut j = parent[row];
+            while j != NO_DOF {
+                xk -= h[(row, j)] * x[j - first_dof];
+                j = parent[j];
+            }
+            x[k] = xk;
+        }
+    }
+}
+
+/// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
+/// bound by the latency of one addition per entry).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (p, q) in ca.zip(cb) {
+        s0 += p[0] * q[0];
+        s1 += p[1] * q[1];
+        s2 += p[2] * q[2];
+        s3 += p[3] * q[3];
+    }
+    for (p, q) in ra.iter().zip(rb) {
+        s0 += p * q;
+    }
+    (s0 + s1) + (s2 + s3)
 }

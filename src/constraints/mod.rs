@@ -18,7 +18,7 @@ mod contact;
 mod joints;
 mod loops;
 
-pub use assemble::{assemble_single, ProblemBuilder};
+pub use assemble::{assemble_single, ProblemBuilder, TreeFactor};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters};
 pub use joints::{add_joint_friction_rows, add_joint_limit_rows, add_motor_row, JointLimitParameters};
 pub use loops::{
@@ -129,7 +129,7 @@ pub struct ConstraintProblem {
     pub friction: FrictionModel,
     /// Origin of each row.
     pub origins: Vec<RowOrigin>,
-    /// Which velocity blocks (multibodies) each row touches, when the problem was assembled from
+    /// Which velocity blocks (multibodies or their root subtrees) each row touches, when the problem was assembled from
     /// blocks: lets iterative solvers work in velocity space with sparse rows. Empty otherwise.
     pub sparsity: RowSparsity,
 }
@@ -147,19 +147,21 @@ pub struct RowSparsity {
     pub row_start: Vec<usize>,
     /// Block indices touched by each row, concatenated.
     pub blocks_of_row: Vec<usize>,
-    /// For each (row, touched block) entry of `blocks_of_row`, the offset of its segments in
-    /// `j_values` and `x_values`.
+    /// For each (row, touched block) entry of `blocks_of_row`, the offset of its segment (block
+    /// width entries) in `w_values`.
     pub segment_start: Vec<usize>,
-    /// J's entries of each (row, block) segment, contiguous.
-    pub j_values: Vec<f64>,
-    /// M⁻¹Jᵀ's entries of each (row, block) segment, contiguous.
-    pub x_values: Vec<f64>,
+    /// W = J L⁻¹ D^{-1/2}'s entries of each (row, block) segment (M = Lᵀ D L, A = W Wᵀ).
+    pub w_values: Vec<f64>,
+    /// For each (row, block) entry, the span [lo, hi) of the segment outside which W is zero.
+    pub segment_span: Vec<(usize, usize)>,
     /// Rows touching each block: `rows_of_block[block_start[b]..block_start[b + 1]]`.
     pub rows_of_block: Vec<usize>,
     /// Offsets into `rows_of_block`, one per block plus one.
     pub block_start: Vec<usize>,
     /// For each entry of `rows_of_block`, the offset of that row's segment on that block.
     pub segment_of_block_row: Vec<usize>,
+    /// For each entry of `rows_of_block`, the span of W of that row's segment on that block.
+    pub span_of_block_row: Vec<(usize, usize)>,
 }
 
 impl RowSparsity {
@@ -171,12 +173,13 @@ impl RowSparsity {
     pub fn row_blocks(&self, i: usize) -> &[usize] {
         &self.blocks_of_row[self.row_start[i]..self.row_start[i + 1]]
     }
-    /// The segments of row `i`: (first column, J entries, M⁻¹Jᵀ entries) per touched block.
-    pub fn row_segments(&self, i: usize) -> impl Iterator<Item = (usize, &[f64], &[f64])> + '_ {
+    /// The non-zero spans of row `i` of W: (first column in the stacked velocities, W's entries
+    /// from there) per touched block. (A λ)_i = Σ W_i · (Wᵀλ) over them.
+    pub fn row_spans(&self, i: usize) -> impl Iterator<Item = (usize, &[f64])> + '_ {
         (self.row_start[i]..self.row_start[i + 1]).map(move |e| {
-            let (col, width) = self.blocks[self.blocks_of_row[e]];
-            let start = self.segment_start[e];
-            (col, &self.j_values[start..start + width], &self.x_values[start..start + width])
+            let (col, _) = self.blocks[self.blocks_of_row[e]];
+            let (start, (lo, hi)) = (self.segment_start[e], self.segment_span[e]);
+            (col + lo, &self.w_values[start + lo..start + hi])
         })
     }
 }
@@ -214,20 +217,39 @@ impl ConstraintProblem {
         }
     }
 
-    /// Adds the velocity change of impulses λ, `M⁻¹Jᵀλ`, to `v` (length nv): from the sparse
-    /// segments when the problem has them, else from the dense `minv_jt`.
-    pub fn apply_impulses(&self, lambda: &DVector<f64>, v: &mut DVector<f64>) {
-        if self.sparsity.is_empty() {
+    /// Adds the velocity change of impulses λ, `M⁻¹Jᵀλ`, to `v` (length nv): from the dense
+    /// `minv_jt` when the problem has it, else as L⁻¹ D^{-1/2} (Wᵀλ) block by block with the
+    /// factors `factor_of` gives (as for [`ProblemBuilder::build_into_blocks`]); `scratch` is
+    /// resized to nv. Blocks without a factor do not move.
+    pub fn apply_impulses<'f>(
+        &self,
+        lambda: &DVector<f64>,
+        v: &mut DVector<f64>,
+        scratch: &mut Vec<f64>,
+        factor_of: impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+    ) {
+        if self.sparsity.is_empty() || self.minv_jt.shape() == (v.len(), lambda.len()) {
             v.gemv(1.0, &self.minv_jt, lambda, 1.0);
             return;
         }
-        let v = v.as_mut_slice();
+        let sp = &self.sparsity;
+        scratch.clear();
+        scratch.resize(sp.nv, 0.0);
         for (i, &l) in lambda.iter().enumerate() {
             if l != 0.0 {
-                for (col, _, x) in self.sparsity.row_segments(i) {
-                    for (vk, xk) in v[col..col + x.len()].iter_mut().zip(x) {
-                        *vk += l * xk;
+                for (col, w) in sp.row_spans(i) {
+                    for (s, w) in scratch[col..col + w.len()].iter_mut().zip(w) {
+                        *s += l * w;
                     }
+                }
+            }
+        }
+        for (b, &(col, width)) in sp.blocks.iter().enumerate() {
+            if let Some((factor, first_dof)) = factor_of(b) {
+                let s = &mut scratch[col..col + width];
+                factor.unscale_solve(first_dof, s);
+                for (v, s) in v.as_mut_slice()[col..col + width].iter_mut().zip(s.iter()) {
+                    *v += s;
                 }
             }
         }

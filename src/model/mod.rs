@@ -216,6 +216,24 @@ impl Model {
     pub fn subtree_mass(&self, i: usize) -> f64 {
         self.inertias[i].mass + self.children[i].iter().map(|&c| self.subtree_mass(c)).sum::<f64>()
     }
+    /// Velocity ranges (first dof, number of dofs) of the subtrees hanging from the root, in
+    /// order: M(q) is block diagonal over them, so each can be solved on its own (ten boxes
+    /// on free joints in one model are ten 6×6 blocks, not one 60×60). One range covering
+    /// every dof if the numbering does not keep each subtree contiguous.
+    pub fn root_subtree_dofs(&self) -> Vec<(usize, usize)> {
+        let mut ranges: Vec<(usize, usize)> = Vec::new();
+        for k in 0..self.nv {
+            let parent = self.dof_parent[k];
+            if parent == NO_DOF {
+                ranges.push((k, 1));
+            } else if let Some(last) = ranges.last_mut().filter(|r| parent >= r.0) {
+                last.1 += 1;
+            } else {
+                return vec![(0, self.nv)];
+            }
+        }
+        ranges
+    }
     /// Joints whose moving subtree has neither mass nor rotational inertia: the mass matrix is
     /// singular in their coordinates, and forward dynamics reports
     /// [`crate::DynamicsError::SingularMassMatrix`] for them.

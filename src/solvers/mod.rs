@@ -102,8 +102,7 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
     let finite_a = if sp.is_empty() {
         problem.delassus.iter().all(|x| x.is_finite())
     } else {
-        sp.j_values.iter().chain(sp.x_values.iter()).all(|x| x.is_finite())
-            && (0..n).all(|i| problem.delassus[(i, i)].is_finite())
+        sp.w_values.iter().all(|x| x.is_finite()) && (0..n).all(|i| problem.delassus[(i, i)].is_finite())
     };
     if !finite_a || !problem.bias.iter().chain(problem.regularization.iter()).all(|x| x.is_finite()) {
         return bad("A, b or R holds NaN or infinity".into());

@@ -71,13 +71,16 @@ impl ConstraintSolver for PgsSolver {
         }
         let a = &problem.delassus;
         let diag = |i: usize| a[(i, i)] + problem.regularization[i];
-        // With the block structure, sweep in velocity space (ODE's QuickStep): keep
-        // dv = M⁻¹Jᵀλ, so that w_i = J_i (v_free + dv) − u*_i + R_i λ_i costs a dot and an
-        // axpy over the row's segments; otherwise, or when the dense row of A is shorter (few
-        // rows on wide blocks, as on one articulated body), use the dense row of A.
+        // With the block structure, sweep in the factored space (ODE's QuickStep in the metric
+        // of M = Lᵀ D L): keep s = Wᵀλ with W = J L⁻¹ D^{-1/2}, so that
+        // w_i = W_i · s + b_i + R_i λ_i costs a dot and an axpy over the span of row i of W
+        // (the path of its bodies to the root); otherwise, or when the dense row of A is
+        // shorter, use the dense row of A.
+        let span_total: usize =
+            problem.sparsity.segment_span.iter().map(|(lo, hi)| hi.saturating_sub(*lo)).sum();
         let sparse = !problem.sparsity.is_empty()
             && problem.sparsity.row_start.len() == n + 1
-            && 2 * problem.sparsity.j_values.len() < n * n;
+            && 2 * span_total < n * n;
         let nv = problem.sparsity.nv;
         if sparse {
             if self.workspace.dv.len() != nv {
@@ -96,8 +99,8 @@ impl ConstraintSolver for PgsSolver {
                 let dv = dv.borrow();
                 let dv = dv.as_slice();
                 let mut jdv = 0.0;
-                for (col, j, _) in problem.sparsity.row_segments(i) {
-                    jdv += j.iter().zip(&dv[col..col + j.len()]).map(|(a, b)| a * b).sum::<f64>();
+                for (col, w) in problem.sparsity.row_spans(i) {
+                    jdv += w.iter().zip(&dv[col..col + w.len()]).map(|(a, b)| a * b).sum::<f64>();
                 }
                 jdv + problem.regularization[i] * lambda[i] + problem.bias[i]
             } else {
@@ -260,12 +263,12 @@ fn friction_block_step(
     Some((mu[0] * s[0] * k, mu[1] * s[1] * k))
 }
 
-/// dv[blocks of row i] += δ · (M⁻¹Jᵀ)_i.
-fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, dv: &mut DVector<f64>) {
-    let dv = dv.as_mut_slice();
-    for (col, _, x) in problem.sparsity.row_segments(i) {
-        for (d, x) in dv[col..col + x.len()].iter_mut().zip(x) {
-            *d += delta * x;
+/// s[span of row i] += δ · W_iᵀ.
+fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, s: &mut DVector<f64>) {
+    let s = s.as_mut_slice();
+    for (col, w) in problem.sparsity.row_spans(i) {
+        for (d, w) in s[col..col + w.len()].iter_mut().zip(w) {
+            *d += delta * w;
         }
     }
 }

@@ -21,7 +21,7 @@ pub use projection::LoopProjection;
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows_between,
-    add_motor_row, ConstraintProblem, ContactParameters, LoopClosure, ProblemBuilder, RowOrigin,
+    add_motor_row, ConstraintProblem, ContactParameters, LoopClosure, ProblemBuilder, RowOrigin, TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -128,7 +128,13 @@ pub struct World {
     contacts: Vec<Contact>,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
+    /// Diagonal blocks of the stacked mass matrix (first column, width): one per root subtree
+    /// of each multibody.
     blocks: Vec<(usize, usize)>,
+    /// Per block, its multibody and the index of its first dof in that multibody.
+    block_owner: Vec<(usize, usize)>,
+    /// Wᵀλ while applying impulses (nv entries).
+    impulse_scratch: Vec<f64>,
     nv_total: usize,
     time: f64,
     steps: u64,
@@ -158,6 +164,8 @@ impl World {
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
             blocks: Vec::new(),
+            block_owner: Vec::new(),
+            impulse_scratch: Vec::new(),
             nv_total: 0,
             time: 0.0,
             steps: 0,
@@ -185,7 +193,10 @@ impl World {
         debug_assert_eq!(index, self.bodies.len());
         let mut body = Multibody::new(model);
         body.col = self.nv_total;
-        self.blocks.push((body.col, body.model.nv()));
+        for (first, width) in body.model.root_subtree_dofs() {
+            self.blocks.push((body.col + first, width));
+            self.block_owner.push((index, first));
+        }
         self.nv_total += body.model.nv();
         self.bodies.push(body);
         self.projections.push(None);
@@ -518,17 +529,15 @@ impl World {
         // 6. Solve.
         let mut report = None;
         if rows > 0 {
-            let bodies = &self.bodies;
+            let (bodies, owners) = (&self.bodies, &self.block_owner);
             self.builder.build_into_blocks(
                 &self.v_free_all,
                 &self.blocks,
-                |k, slice| {
+                |block| {
+                    let (k, first_dof) = owners[block];
                     let b = &bodies[k];
-                    if b.asleep || b.kinematic || !b.factored {
-                        slice.fill(0.0);
-                    } else {
-                        crate::algorithms::solve_mass_matrix_slice(&b.model, &b.data, slice);
-                    }
+                    let movable = !(b.asleep || b.kinematic || !b.factored);
+                    movable.then(|| (TreeFactor::new(&b.model, &b.data), first_dof))
                 },
                 false,
                 &mut self.problem,
@@ -546,7 +555,18 @@ impl World {
         lap(4, &mut clock);
         // 7. Velocity update and integration on the manifold; commit only if all is finite.
         if rows > 0 {
-            self.problem.apply_impulses(&self.lambda, &mut self.v_free_all);
+            let (bodies, owners) = (&self.bodies, &self.block_owner);
+            self.problem.apply_impulses(
+                &self.lambda,
+                &mut self.v_free_all,
+                &mut self.impulse_scratch,
+                |block| {
+                    let (k, first_dof) = owners[block];
+                    let b = &bodies[k];
+                    let movable = !(b.asleep || b.kinematic || !b.factored);
+                    movable.then(|| (TreeFactor::new(&b.model, &b.data), first_dof))
+                },
+            );
         }
         for i in 0..self.bodies.len() {
             let b = &mut self.bodies[i];
