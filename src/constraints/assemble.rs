@@ -2,7 +2,7 @@
 //! Delassus matrix `A = J M⁻¹ Jᵀ` computed from the tree-sparse factor of M (never forming M⁻¹):
 //! A = W Wᵀ with W = J L⁻¹ D^{-1/2}, whose rows keep the sparsity of J's rows.
 
-use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin};
+use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin, RowSparsity};
 use crate::data::Data;
 use crate::model::{Model, NO_DOF};
 use nalgebra::{DMatrix, DVector};
@@ -121,7 +121,9 @@ impl ProblemBuilder {
     /// touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block, and the block
     /// structure is kept in [`ConstraintProblem::sparsity`]. With `dense` false, the dense
     /// `jacobian` and `minv_jt` are left empty (the sparse segments hold them; use
-    /// [`ConstraintProblem::apply_impulses`]) — the stepping path, which never needs them.
+    /// [`ConstraintProblem::apply_impulses`]) — the stepping path, which never needs them — and
+    /// A itself is left unformed ([`ConstraintProblem::is_matrix_free`]) when its n² entries
+    /// outnumber twice W's non-zero spans.
     ///
     /// With M = Lᵀ D L (RBDA §6.5), A = W Wᵀ for W = J L⁻¹ D^{-1/2}. A row of J acting on a body
     /// is non-zero only on the dofs of the body's path to the root, and L⁻ᵀ keeps that pattern
@@ -141,8 +143,7 @@ impl ProblemBuilder {
             problem.jacobian = DMatrix::zeros(jn, jv);
             problem.minv_jt = DMatrix::zeros(jv, jn);
         }
-        if problem.delassus.shape() != (n, n) {
-            problem.delassus = DMatrix::zeros(n, n);
+        if problem.bias.len() != n {
             problem.regularization = DVector::zeros(n);
             problem.bias = DVector::zeros(n);
             problem.target = DVector::zeros(n);
@@ -225,28 +226,16 @@ impl ProblemBuilder {
                 }
             }
         }
-        // A = W Wᵀ: per block, over the pairs of rows touching it (other blocks give zero),
-        // each dot product over the span where both rows' W can be non-zero.
-        problem.delassus.fill(0.0);
-        let sp = &problem.sparsity;
-        for b in 0..blocks.len() {
-            let range = sp.block_start[b]..sp.block_start[b + 1];
-            let rows = &sp.rows_of_block[range.clone()];
-            let segments = &sp.segment_of_block_row[range.clone()];
-            let spans = &sp.span_of_block_row[range];
-            for (p, ((&i, &si), &(lo_i, hi_i))) in rows.iter().zip(segments).zip(spans).enumerate() {
-                for ((&j, &sj), &(lo_j, hi_j)) in rows[..=p].iter().zip(segments).zip(spans) {
-                    let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
-                    if lo >= hi {
-                        continue;
-                    }
-                    let a = dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
-                    problem.delassus[(i, j)] += a;
-                    if i != j {
-                        problem.delassus[(j, i)] += a;
-                    }
-                }
+        // A = W Wᵀ, unless the stepping path is better off matrix-free: n² entries against the
+        // spans of W (many rows on small bodies, where a sweep over W is cheaper than over A).
+        let span_total: usize = problem.sparsity.segment_span.iter().map(|(lo, hi)| hi - lo).sum();
+        if dense || 2 * span_total >= n * n {
+            if problem.delassus.shape() != (n, n) {
+                problem.delassus = DMatrix::zeros(n, n);
             }
+            delassus_from_w(&problem.sparsity, &mut problem.delassus);
+        } else if problem.delassus.nrows() != 0 {
+            problem.delassus = DMatrix::zeros(0, 0);
         }
         for i in 0..n {
             let row = self.row(i);
@@ -339,9 +328,34 @@ impl<'a> TreeFactor<'a> {
     }
 }
 
+/// A = W Wᵀ into `a` (n × n): per block, over the pairs of rows touching it (other blocks give
+/// zero), each dot product over the span where both rows' W can be non-zero.
+pub(crate) fn delassus_from_w(sp: &RowSparsity, a: &mut DMatrix<f64>) {
+    a.fill(0.0);
+    for b in 0..sp.blocks.len() {
+        let range = sp.block_start[b]..sp.block_start[b + 1];
+        let rows = &sp.rows_of_block[range.clone()];
+        let segments = &sp.segment_of_block_row[range.clone()];
+        let spans = &sp.span_of_block_row[range];
+        for (p, ((&i, &si), &(lo_i, hi_i))) in rows.iter().zip(segments).zip(spans).enumerate() {
+            for ((&j, &sj), &(lo_j, hi_j)) in rows[..=p].iter().zip(segments).zip(spans) {
+                let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
+                if lo >= hi {
+                    continue;
+                }
+                let x = dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
+                a[(i, j)] += x;
+                if i != j {
+                    a[(j, i)] += x;
+                }
+            }
+        }
+    }
+}
+
 /// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
 /// bound by the latency of one addition per entry).
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
     let (ra, rb) = (ca.remainder(), cb.remainder());

@@ -113,7 +113,11 @@ pub struct ConstraintProblem {
     pub jacobian: DMatrix<f64>,
     /// M⁻¹ Jᵀ (nv × rows): the velocity change per unit impulse of each row.
     pub minv_jt: DMatrix<f64>,
-    /// Delassus matrix A = J M⁻¹ Jᵀ (rows × rows, symmetric positive semi-definite).
+    /// Delassus matrix A = J M⁻¹ Jᵀ (rows × rows, symmetric positive semi-definite), or empty
+    /// (0 × 0) when the problem is matrix-free ([`Self::is_matrix_free`]): then `sparsity` holds
+    /// W with A = W Wᵀ, and [`Self::delassus_entry`], [`Self::delassus_dense`] and
+    /// [`Self::velocities`] work from it. The stepping path leaves A unformed when its n²
+    /// entries would cost more than W's (many rows on small bodies: stacks, piles).
     pub delassus: DMatrix<f64>,
     /// Diagonal regularisation R (m/s per N·s), from constraint softness.
     pub regularization: DVector<f64>,
@@ -129,6 +133,8 @@ pub struct ConstraintProblem {
     pub friction: FrictionModel,
     /// Origin of each row.
     pub origins: Vec<RowOrigin>,
+    /// Wᵀλ of the matrix-free product in [`Self::velocities`] (nv entries, reused).
+    pub(crate) scratch: Scratch,
     /// Which velocity blocks (multibodies or their root subtrees) each row touches, when the problem was assembled from
     /// blocks: lets iterative solvers work in velocity space with sparse rows. Empty otherwise.
     pub sparsity: RowSparsity,
@@ -198,7 +204,25 @@ impl Default for ConstraintProblem {
             friction: FrictionModel::Cone,
             origins: Vec::new(),
             sparsity: RowSparsity::default(),
+            scratch: Scratch::default(),
         }
+    }
+}
+
+/// Reused scratch space inside a [`ConstraintProblem`]: not part of the problem's value (equal
+/// to every other, cloned empty).
+#[derive(Debug, Default)]
+pub(crate) struct Scratch(std::cell::RefCell<Vec<f64>>);
+
+impl Clone for Scratch {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl PartialEq for Scratch {
+    fn eq(&self, _: &Self) -> bool {
+        true
     }
 }
 
@@ -208,10 +232,68 @@ impl ConstraintProblem {
         self.laws.len()
     }
 
-    /// Row velocities `w = (A + R) λ + b` written into `w`.
+    /// Whether A is left unformed (see [`Self::delassus`]).
+    pub fn is_matrix_free(&self) -> bool {
+        self.delassus.nrows() != self.rows() && !self.sparsity.is_empty()
+    }
+
+    /// A_ij, from the dense A or, matrix-free, as W_i · W_j over the blocks both rows touch.
+    pub fn delassus_entry(&self, i: usize, j: usize) -> f64 {
+        if !self.is_matrix_free() {
+            return self.delassus[(i, j)];
+        }
+        let sp = &self.sparsity;
+        let mut a = 0.0;
+        for ei in sp.row_start[i]..sp.row_start[i + 1] {
+            for ej in sp.row_start[j]..sp.row_start[j + 1] {
+                if sp.blocks_of_row[ei] == sp.blocks_of_row[ej] {
+                    let ((lo_i, hi_i), (lo_j, hi_j)) = (sp.segment_span[ei], sp.segment_span[ej]);
+                    let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
+                    if lo < hi {
+                        let (si, sj) = (sp.segment_start[ei], sp.segment_start[ej]);
+                        a += assemble::dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
+                    }
+                }
+            }
+        }
+        a
+    }
+
+    /// The dense A: borrowed, or formed from W when the problem is matrix-free (for the
+    /// pivoting and interior-point solvers, which need every entry).
+    pub fn delassus_dense(&self) -> std::borrow::Cow<'_, DMatrix<f64>> {
+        if !self.is_matrix_free() {
+            return std::borrow::Cow::Borrowed(&self.delassus);
+        }
+        let mut a = DMatrix::zeros(self.rows(), self.rows());
+        assemble::delassus_from_w(&self.sparsity, &mut a);
+        std::borrow::Cow::Owned(a)
+    }
+
+    /// Row velocities `w = (A + R) λ + b` written into `w` (matrix-free: W (Wᵀλ) + R λ + b).
     pub fn velocities(&self, lambda: &DVector<f64>, w: &mut DVector<f64>) {
         w.copy_from(&self.bias);
-        w.gemv(1.0, &self.delassus, lambda, 1.0);
+        if self.is_matrix_free() {
+            let sp = &self.sparsity;
+            let mut s = self.scratch.0.borrow_mut();
+            s.clear();
+            s.resize(sp.nv, 0.0);
+            for (i, &l) in lambda.iter().enumerate() {
+                if l != 0.0 {
+                    for (col, wi) in sp.row_spans(i) {
+                        for (s, wi) in s[col..col + wi.len()].iter_mut().zip(wi) {
+                            *s += l * wi;
+                        }
+                    }
+                }
+            }
+            for i in 0..w.len() {
+                w[i] +=
+                    sp.row_spans(i).map(|(col, wi)| assemble::dot(wi, &s[col..col + wi.len()])).sum::<f64>();
+            }
+        } else {
+            w.gemv(1.0, &self.delassus, lambda, 1.0);
+        }
         for i in 0..w.len() {
             w[i] += self.regularization[i] * lambda[i];
         }
@@ -274,6 +356,7 @@ impl ConstraintProblem {
             bias,
             origins: vec![RowOrigin::Other; laws.len()],
             sparsity: RowSparsity::default(),
+            scratch: Scratch::default(),
             laws,
             contacts,
             friction,

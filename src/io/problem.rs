@@ -202,8 +202,9 @@ pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
     sized("R", problem.regularization.len())?;
     sized("the target velocities", problem.target.len())?;
     sized("the row origins", problem.origins.len())?;
-    if problem.delassus.shape() != (n, n) {
-        return Err(format!("A is {:?}, the problem has {n} rows", problem.delassus.shape()));
+    let delassus = problem.delassus_dense();
+    if delassus.shape() != (n, n) {
+        return Err(format!("A is {:?}, the problem has {n} rows", delassus.shape()));
     }
     if problem.jacobian.nrows() != n || problem.minv_jt.shape() != (nv, n) {
         return Err(format!(
@@ -214,7 +215,7 @@ pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
     }
     let all_finite = |x: &[f64]| x.iter().all(|v| v.is_finite());
     for (name, x) in [
-        ("A", problem.delassus.as_slice()),
+        ("A", delassus.as_slice()),
         ("b", problem.bias.as_slice()),
         ("R", problem.regularization.as_slice()),
         ("the target velocities", problem.target.as_slice()),
@@ -323,7 +324,7 @@ fn to_file(problem: &ConstraintProblem) -> ProblemFile {
         bias: problem.bias.iter().copied().collect(),
         regularization: problem.regularization.iter().copied().collect(),
         target: Some(problem.target.iter().copied().collect()),
-        delassus: matrix_rows(&problem.delassus),
+        delassus: matrix_rows(&problem.delassus_dense()),
         jacobian: has_jacobian.then(|| matrix_rows(&problem.jacobian)),
         minv_jt: has_jacobian.then(|| matrix_rows(&problem.minv_jt)),
     }
@@ -352,6 +353,7 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
     };
     let problem = ConstraintProblem {
         sparsity: Default::default(),
+        scratch: Default::default(),
         jacobian,
         minv_jt,
         delassus: matrix_from_rows(&file.delassus, n, n, "delassus")?,
@@ -580,7 +582,7 @@ pub fn qp_of(problem: &ConstraintProblem) -> Option<QpForm> {
     };
     let (g, h) = select(&g_rows);
     let (a, b) = select(&a_rows);
-    let p = &problem.delassus + DMatrix::from_diagonal(&problem.regularization);
+    let p = problem.delassus_dense().into_owned() + DMatrix::from_diagonal(&problem.regularization);
     Some(QpForm { p, q: problem.bias.clone(), g, h, a, b, lb, ub })
 }
 
@@ -877,8 +879,10 @@ pub struct SolverRecord {
 
 /// `½λᵀ(A + R)λ + bᵀλ`.
 pub fn objective(problem: &ConstraintProblem, lambda: &DVector<f64>) -> f64 {
-    let r = problem.regularization.component_mul(lambda);
-    0.5 * lambda.dot(&(&problem.delassus * lambda + r)) + problem.bias.dot(lambda)
+    let mut w = DVector::zeros(problem.rows());
+    problem.velocities(lambda, &mut w);
+    // w = (A + R)λ + b, so ½λᵀ(A + R)λ + bᵀλ = ½λᵀ(w + b).
+    0.5 * lambda.dot(&(w + &problem.bias))
 }
 
 /// Solves `problem` with `kind` (from zero impulses) and records the outcome; also returns the

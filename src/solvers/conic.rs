@@ -40,11 +40,12 @@ pub struct ConeProgram {
 /// Builds the cone program of `problem` (see the module documentation).
 pub fn cone_program(problem: &ConstraintProblem) -> ConeProgram {
     let n = problem.rows();
+    let delassus = problem.delassus_dense();
     // P: upper triangle of A + R, column by column.
     let (mut colptr, mut rowval, mut nzval) = (vec![0usize], Vec::new(), Vec::new());
     for j in 0..n {
         for i in 0..=j {
-            let x = problem.delassus[(i, j)] + if i == j { problem.regularization[i] } else { 0.0 };
+            let x = delassus[(i, j)] + if i == j { problem.regularization[i] } else { 0.0 };
             if x != 0.0 || i == j {
                 rowval.push(i);
                 nzval.push(x);

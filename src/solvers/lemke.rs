@@ -118,7 +118,7 @@ pub fn lcp_of(problem: &ConstraintProblem, facets: usize) -> Lcp {
             c[(i, j)] += x;
         }
     }
-    let mut a = problem.delassus.clone();
+    let mut a = problem.delassus_dense().into_owned();
     for i in 0..n {
         a[(i, i)] += problem.regularization[i];
     }

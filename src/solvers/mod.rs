@@ -89,7 +89,8 @@ pub trait ConstraintSolver {
 pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverError> {
     let n = problem.rows();
     let bad = |what: String| Err(SolverError::InvalidProblem(what));
-    if problem.delassus.shape() != (n, n) || problem.bias.len() != n || problem.regularization.len() != n {
+    let shape_ok = problem.delassus.shape() == (n, n) || problem.is_matrix_free();
+    if !shape_ok || problem.bias.len() != n || problem.regularization.len() != n {
         return bad(format!(
             "{n} rows but A is {:?} and b has {}",
             problem.delassus.shape(),
@@ -102,7 +103,8 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
     let finite_a = if sp.is_empty() {
         problem.delassus.iter().all(|x| x.is_finite())
     } else {
-        sp.w_values.iter().all(|x| x.is_finite()) && (0..n).all(|i| problem.delassus[(i, i)].is_finite())
+        sp.w_values.iter().all(|x| x.is_finite())
+            && (problem.is_matrix_free() || (0..n).all(|i| problem.delassus[(i, i)].is_finite()))
     };
     if !finite_a || !problem.bias.iter().chain(problem.regularization.iter()).all(|x| x.is_finite()) {
         return bad("A, b or R holds NaN or infinity".into());

@@ -28,6 +28,10 @@ pub struct PgsSolver {
 #[derive(Clone, Debug, Default)]
 pub struct PgsWorkspace {
     dv: DVector<f64>,
+    /// A_ii + R_ii per row.
+    diagonal: Vec<f64>,
+    /// A between the two friction rows of each contact.
+    coupling: Vec<f64>,
 }
 
 impl Default for PgsSolver {
@@ -70,7 +74,17 @@ impl ConstraintSolver for PgsSolver {
             *lambda = DVector::zeros(n);
         }
         let a = &problem.delassus;
-        let diag = |i: usize| a[(i, i)] + problem.regularization[i];
+        self.workspace.diagonal.clear();
+        self.workspace
+            .diagonal
+            .extend((0..n).map(|i| problem.delassus_entry(i, i) + problem.regularization[i]));
+        self.workspace.coupling.clear();
+        self.workspace.coupling.extend(problem.contacts.iter().map(|c| {
+            let (_, t1, t2) = c.rows();
+            problem.delassus_entry(t1, t2)
+        }));
+        let (diagonal, coupling) = (&self.workspace.diagonal, &self.workspace.coupling);
+        let diag = |i: usize| diagonal[i];
         // With the block structure, sweep in the factored space (ODE's QuickStep in the metric
         // of M = Lᵀ D L): keep s = Wᵀλ with W = J L⁻¹ D^{-1/2}, so that
         // w_i = W_i · s + b_i + R_i λ_i costs a dot and an axpy over the span of row i of W
@@ -78,9 +92,10 @@ impl ConstraintSolver for PgsSolver {
         // shorter, use the dense row of A.
         let span_total: usize =
             problem.sparsity.segment_span.iter().map(|(lo, hi)| hi.saturating_sub(*lo)).sum();
-        let sparse = !problem.sparsity.is_empty()
-            && problem.sparsity.row_start.len() == n + 1
-            && 2 * span_total < n * n;
+        let sparse = problem.is_matrix_free()
+            || (!problem.sparsity.is_empty()
+                && problem.sparsity.row_start.len() == n + 1
+                && 2 * span_total < n * n);
         let nv = problem.sparsity.nv;
         if sparse {
             if self.workspace.dv.len() != nv {
@@ -137,7 +152,7 @@ impl ConstraintSolver for PgsSolver {
                             // Both tangents at once, exactly on the friction disc (see
                             // `friction_block_step`): a fixed point then opposes slip.
                             let (w1, w2) = (w(t1, lambda), w(t2, lambda));
-                            let g = [diag(t1), a[(t1, t2)], diag(t2)];
+                            let g = [diag(t1), coupling[contact], diag(t2)];
                             if let Some((p1, p2)) = friction_block_step(
                                 [o1, o2],
                                 [w1, w2],

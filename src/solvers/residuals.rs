@@ -95,7 +95,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         *w = DVector::zeros(n);
     }
     problem.velocities(lambda, w);
-    let d = |i: usize| (problem.delassus[(i, i)] + problem.regularization[i]).max(f64::MIN_POSITIVE);
+    let d = |i: usize| (problem.delassus_entry(i, i) + problem.regularization[i]).max(f64::MIN_POSITIVE);
     let mut r = Residuals::default();
     let frictionless = problem.contacts.iter().all(|c| c.mu == 0.0 && c.mu2 == 0.0);
     let mut qp = QpResiduals::default();
