@@ -128,7 +128,7 @@ fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
         "--out",
         dir.to_str().unwrap(),
         "--cases",
-        "rolling_ball,cradle,fast_sphere",
+        "rolling_ball,cradle,fast_sphere,dzhanibekov",
         "--solvers",
         "lemke,pgs50",
         "--dt",
@@ -137,8 +137,9 @@ fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let csv = std::fs::read_to_string(dir.join("stability.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], "case,solver,dt,pass,figure,seconds,detail");
-    assert_eq!(lines.len(), 1 + 3 * 2, "{csv}");
+    assert_eq!(lines[0], "case,solver,dt,integrator,pass,figure,seconds,detail");
+    // Three contact cases with the default integrator, the Dzhanibekov spin with it and RK4.
+    assert_eq!(lines.len(), 1 + 3 * 2 + 2 * 2, "{csv}");
     // The rolling ball passes with both solvers (5/7 g sin θ within 1 %); the 100 m/s sphere
     // tunnels through the 2 cm wall at dt = 1/240 s (v·dt / (thickness + 2r) = 10.4).
     for solver in ["lemke", "pgs50"] {
@@ -146,17 +147,28 @@ fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
             |case: &str| lines.iter().find(|l| l.starts_with(&format!("{case},{solver},"))).copied().unwrap();
         assert!(row("rolling_ball").contains(",true,"), "{}", row("rolling_ball"));
         let tunnel: Vec<&str> = row("fast_sphere").split(',').collect();
-        assert_eq!(tunnel[3], "false");
-        assert!((tunnel[4].parse::<f64>().unwrap() - 100.0 / 240.0 / 0.04).abs() < 1e-9);
+        assert_eq!(tunnel[4], "false");
+        assert!((tunnel[5].parse::<f64>().unwrap() - 100.0 / 240.0 / 0.04).abs() < 1e-9);
+        // The spin keeps L and E to 1e-6 with RK4 in the world, not with the default step.
+        let spin = |integrator: &str| {
+            let prefix = format!("dzhanibekov,{solver},0.004166666666666667,{integrator},");
+            lines.iter().find(|l| l.starts_with(&prefix)).copied().unwrap()
+        };
+        assert!(spin("rk4").contains(",true,"), "{}", spin("rk4"));
+        assert!(spin("semi-implicit-euler").contains(",false,"), "{}", spin("semi-implicit-euler"));
     }
     let markdown = std::fs::read_to_string(dir.join("stability.md")).unwrap();
-    assert!(markdown.starts_with("| case | dt (s) | lemke | pgs50 |"), "{markdown}");
-    assert!(markdown.contains("| rolling_ball | 1/240 | pass"), "{markdown}");
+    assert!(markdown.starts_with("| case | dt (s) | integrator | lemke | pgs50 |"), "{markdown}");
+    assert!(markdown.contains("| rolling_ball | 1/240 | semi-implicit-euler | pass"), "{markdown}");
+    assert!(markdown.contains("| dzhanibekov | 1/240 | rk4 | pass"), "{markdown}");
     std::fs::remove_dir_all(&dir).ok();
 
     let bad = gelenk(&["report", "stability", "--cases", "no_such_case"]);
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown case `no_such_case`"));
+    let bad = gelenk(&["report", "stability", "--integrators", "rk5"]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown integrator `rk5`"));
 }
 
 #[test]

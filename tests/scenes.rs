@@ -105,8 +105,8 @@ fn bad_values_are_errors_with_their_line() {
     assert!(message.contains("line 2") && message.contains("cone"), "{message}");
     let message = load_error("[world]\nfriction = \"pyramid2\"\n");
     assert!(message.contains("line 2") && message.contains("pyramid2"), "{message}");
-    let message = load_error("[world]\n\nintegrator = \"rk4\"\n");
-    assert!(message.contains("line 3") && message.contains("rk4"), "{message}");
+    let message = load_error("[world]\n\nintegrator = \"rk5\"\n");
+    assert!(message.contains("line 3") && message.contains("rk5"), "{message}");
     // Wrong type, out of range, negative dt.
     let message = load_error("[contact]\nmu = \"high\"\n");
     assert!(message.contains("line 2") && message.contains("contact.mu"), "{message}");
@@ -490,4 +490,23 @@ fn bad_vehicle_entries_are_errors_with_their_line() {
     // A bad parameter.
     let message = load_error(&format!("{buggy}[[vehicle]]\nmultibody = \"car\"\nwheel_radius = 0\n"));
     assert!(message.contains("line 7") && message.contains("vehicle[0].wheel_radius"), "{message}");
+}
+
+#[test]
+fn the_integrator_key_sets_the_world_integrator() {
+    use gelenk::integrators::IntegratorKind;
+    for (name, kind) in [
+        ("rk4", IntegratorKind::Rk4),
+        ("semi-implicit-euler", IntegratorKind::SemiImplicitEuler),
+        ("gbs6", IntegratorKind::GraggBulirschStoer { columns: 6 }),
+    ] {
+        let text =
+            format!("[world]\nintegrator = \"{name}\"\n\n[[body]]\nshape = \"sphere\"\nradius = 0.1\n");
+        let scene = scene::load_str(&text, models_dir()).unwrap();
+        assert_eq!(scene.world.options().integrator, kind, "{name}");
+        assert_eq!(scene.integrator, name);
+    }
+    // Without the key: the velocity-level step.
+    let scene = scene::load_str("[[body]]\nshape = \"sphere\"\nradius = 0.1\n", models_dir()).unwrap();
+    assert_eq!(scene.world.options().integrator, IntegratorKind::SemiImplicitEuler);
 }

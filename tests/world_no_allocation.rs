@@ -170,3 +170,29 @@ fn collision_detection_allocates_nothing_in_steady_state() {
     });
     assert_eq!(count, 0, "CollisionWorld::detect allocated {count} times in 10 calls");
 }
+
+#[test]
+fn smooth_steps_allocate_nothing() {
+    // RK4 steps of the four-bar (constrained stages and the projection), and Dormand–Prince
+    // steps of a free body, after the first step has built the integrators.
+    use gelenk::integrators::IntegratorKind;
+    let mut options = WorldOptions { dt: 1e-3, integrator: IntegratorKind::Rk4, ..Default::default() };
+    options.sleep.enabled = false;
+    let (mut four_bar, _) = gelenk::report::stability::four_bar_world(options.clone()).unwrap();
+    options.integrator = IntegratorKind::DormandPrince45 { rtol: 1e-9, atol: 1e-12 };
+    let mut free = World::new(options);
+    let b = free.add_multibody("box", lone_box(0.1), &MeshOptions::default()).unwrap();
+    free.multibody_mut(b).state.v[4] = 3.0;
+    for _ in 0..10 {
+        four_bar.step().unwrap();
+        free.step().unwrap();
+    }
+    assert_eq!((four_bar.stats().integrator, free.stats().integrator), ("rk4", "dopri45"));
+    let count = allocations_during(|| {
+        for _ in 0..100 {
+            four_bar.step().unwrap();
+            free.step().unwrap();
+        }
+    });
+    assert_eq!(count, 0, "smooth steps allocated {count} times");
+}

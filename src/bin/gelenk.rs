@@ -139,6 +139,11 @@ enum ReportCommand {
         /// Only these time steps in s (default: 1/60, 1/240, 1/1000).
         #[arg(long, value_delimiter = ',')]
         dt: Vec<f64>,
+        /// World integrators (semi-implicit-euler, rk4, dopri45, ...; default:
+        /// semi-implicit-euler, and rk4 too on the cases without contact). The first one runs
+        /// every case; the others only the cases without contact (dzhanibekov, four_bar).
+        #[arg(long, value_delimiter = ',')]
+        integrators: Vec<String>,
     },
     /// Scenes × integrators × time steps (× solver settings for contact scenes): writes
     /// speed_error.csv, speed_error.md, speed_error.png and speed_error.svg into OUT.
@@ -219,8 +224,8 @@ fn main() -> ExitCode {
         Command::Simulate { scene, duration, dt, solver, out, json } => {
             simulate(&scene, duration, dt, solver.as_deref(), out.as_deref(), json)
         }
-        Command::Report { what: ReportCommand::Stability { out, cases, solvers, dt } } => {
-            report_stability(out.as_deref(), &cases, &solvers, &dt)
+        Command::Report { what: ReportCommand::Stability { out, cases, solvers, dt, integrators } } => {
+            report_stability(out.as_deref(), &cases, &solvers, &dt, &integrators)
         }
         Command::Render { scene, out, frames, duration } => render(&scene, &out, frames, duration),
         Command::Report { what: ReportCommand::SpeedError { out, quick, peers, repeats } } => {
@@ -823,6 +828,7 @@ fn report_stability(
     cases: &[String],
     solvers: &[String],
     dts: &[f64],
+    integrators: &[String],
 ) -> Result<(), String> {
     use gelenk::report::stability;
     let selected: Vec<stability::Case> = if cases.is_empty() {
@@ -852,15 +858,32 @@ fn report_stability(
     if let Some(bad) = dts.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
         return Err(format!("time step {bad} is not a positive number"));
     }
-    let cells = stability::run(&selected, &solver_kinds, &dts, |cell| {
+    let integrator_kinds: Vec<gelenk::integrators::IntegratorKind> = if integrators.is_empty() {
+        std::iter::once(gelenk::integrators::IntegratorKind::SemiImplicitEuler)
+            .chain(stability::SMOOTH_INTEGRATORS)
+            .collect()
+    } else {
+        integrators
+            .iter()
+            .map(|name| {
+                gelenk::world::parse_integrator(name).ok_or_else(|| {
+                    format!(
+                        "unknown integrator `{name}` (known: {})",
+                        gelenk::world::INTEGRATOR_NAMES.join(", ")
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let cells = stability::run(&selected, &solver_kinds, &dts, &integrator_kinds, |cell| {
         let status = match &cell.outcome {
             None => "skipped".to_string(),
             Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
             Some(Err(e)) => format!("error: {e}"),
         };
         eprintln!(
-            "{:<15} {:<9} dt {:<9.6} {status} ({:.1} s)",
-            cell.case, cell.solver, cell.dt, cell.seconds
+            "{:<15} {:<9} dt {:<9.6} {:<19} {status} ({:.1} s)",
+            cell.case, cell.solver, cell.dt, cell.integrator, cell.seconds
         );
     });
     let markdown = stability::markdown(&cells, &selected);

@@ -84,7 +84,7 @@
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
 //! | | `sleep` | let resting bodies sleep (true) |
-//! | | `integrator` | `"semi-implicit-euler"` (the only one) |
+//! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
 //! | `[contact]` | `mu`, `mu2`, `restitution`, `bounce_velocity`, `erp`, `cfm`, `surface_layer`, `max_correcting_velocity` | parameters of material 0 ([`ContactParameters`]) |
 //! | `[limits]` | `erp`, `cfm`, `restitution`, `bounce_velocity`, `margin` | joint-limit parameters ([`JointLimitParameters`]) |
 //! | `[[material]]` | `index` (≥ 1, required), `name`, and the keys of `[contact]` | a material; unset parameters are `[contact]`'s |
@@ -156,9 +156,10 @@ use std::time::Instant;
 use thiserror::Error;
 use toml::Spanned;
 
-/// Names of the integrators a scene may ask for. The world integrates with the semi-implicit
-/// (symplectic) Euler scheme: new velocities first, then positions with the new velocities.
-pub const INTEGRATORS: [&str; 1] = ["semi-implicit-euler"];
+/// Names of the integrators a scene may ask for (`gbsN` too): the world's velocity-level
+/// semi-implicit Euler step, or a scheme of [`crate::integrators`] for the steps without contact
+/// ([`crate::world::smooth`]).
+pub const INTEGRATORS: [&str; 7] = crate::world::INTEGRATOR_NAMES;
 
 // ------------------------------------------------------------------------------------------------
 // Public API
@@ -974,7 +975,7 @@ struct IntegratorName(String);
 impl<'de> Deserialize<'de> for IntegratorName {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let name = String::deserialize(d)?;
-        if INTEGRATORS.contains(&name.as_str()) {
+        if crate::world::parse_integrator(&name).is_some() {
             Ok(IntegratorName(name))
         } else {
             Err(D::Error::custom(format!("unknown integrator `{name}` (known: {})", INTEGRATORS.join(", "))))
@@ -1371,6 +1372,9 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);
+    if let Some(name) = &w.integrator {
+        options.integrator = crate::world::parse_integrator(&name.0).unwrap_or(options.integrator);
+    }
     let l = &doc.limits;
     let lim = JointLimitParameters::default();
     options.limits = JointLimitParameters {

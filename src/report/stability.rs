@@ -4,25 +4,31 @@
 //! settings; [`run`] fills the table of every case × solver × dt that `gelenk report stability`
 //! writes as markdown and CSV — the same code measures both.
 //!
-//! The step is semi-implicit Euler. Two criteria of the issue need a better integrator and are
-//! measured here but documented as limits: the Dzhanibekov spin (energy and angular momentum to
-//! 1e-6) and the four-bar's energy drift; the 100-link chain with a 1000:1 end mass
-//! (|ΔE/E| < 1e-6) is left for the RK4 integrator and is not a case yet.
+//! A setting also names the world's integrator ([`WorldOptions::integrator`]): the default,
+//! semi-implicit Euler, is the velocity-level step throughout; another scheme advances the
+//! steps without contact ([`crate::world::smooth`]). Two criteria of the issue need it: the
+//! Dzhanibekov spin (energy and angular momentum to 1e-6) and the four-bar's energy drift
+//! ([`SMOOTH_CASES`], which the report also runs with [`SMOOTH_INTEGRATORS`]). The 100-link chain
+//! with a 1000:1 end mass (|ΔE/E| < 1e-6) is tested with RK4 outside the world, not a case.
 
 use crate::collision::MeshOptions;
 use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
+use crate::integrators::IntegratorKind;
 use crate::math::{axis_angle, Mat3, Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape, Suspension};
-use crate::world::{SolverKind, StepError, World, WorldOptions};
+use crate::world::{integrator_name, SolverKind, StepError, World, WorldOptions};
 use nalgebra::{DVector, UnitQuaternion};
 
-/// One solver (alone in the chain, its answer always accepted) and one time step.
+/// One solver (alone in the chain, its answer always accepted), one time step and the world's
+/// integrator.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Setting {
     /// The solver.
     pub solver: SolverKind,
     /// Time step (s).
     pub dt: f64,
+    /// The integrator of steps without contact ([`WorldOptions::integrator`]).
+    pub integrator: IntegratorKind,
 }
 
 impl Setting {
@@ -34,7 +40,20 @@ impl Setting {
             SolverKind::Pgs { iterations, .. } => format!("pgs{iterations}"),
         }
     }
+
+    /// The setting of `solver` and `dt` with the world's default integrator (semi-implicit
+    /// Euler, the velocity-level step).
+    pub fn new(solver: SolverKind, dt: f64) -> Self {
+        Self { solver, dt, integrator: IntegratorKind::SemiImplicitEuler }
+    }
 }
+
+/// The cases without any contact, where the integrator decides the result: the report runs
+/// them with each of [`SMOOTH_INTEGRATORS`] too.
+pub const SMOOTH_CASES: [&str; 2] = ["dzhanibekov", "four_bar"];
+
+/// The integrators the report tries on [`SMOOTH_CASES`] besides the default.
+pub const SMOOTH_INTEGRATORS: [IntegratorKind; 1] = [IntegratorKind::Rk4];
 
 /// The solvers of the report: Lemke (8-facet pyramid), clarabel, PGS with 10 and 50 sweeps.
 pub const SOLVERS: [SolverKind; 4] = [
@@ -192,6 +211,7 @@ pub fn case(name: &str) -> Option<&'static Case> {
 pub fn options(setting: &Setting) -> WorldOptions {
     let mut o = WorldOptions {
         dt: setting.dt,
+        integrator: setting.integrator,
         solvers: vec![setting.solver],
         tolerance: 1e-8,
         accept_last: true,
@@ -393,6 +413,15 @@ pub fn dzhanibekov_reference_period(inertia: &Mat3, omega: Vec3, duration: f64) 
 }
 
 /// The flip period from the times ω_x changes sign: twice the mean interval.
+/// Records the scheme a step used ([`crate::world::StepStats::integrator`]) once: a smooth case
+/// names in its detail which steps it took (a scheme without a closed-loop form leaves a
+/// linkage to the velocity-level step).
+fn note_scheme(schemes: &mut Vec<&'static str>, scheme: &'static str) {
+    if !schemes.contains(&scheme) {
+        schemes.push(scheme);
+    }
+}
+
 fn flip_period(crossings: &[f64]) -> Option<f64> {
     (crossings.len() >= 2)
         .then(|| 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64)
@@ -420,8 +449,10 @@ fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
     let (mut dl, mut de) = (0.0f64, 0.0f64);
     let mut crossings = Vec::new();
     let mut last = omega0.x;
+    let mut schemes: Vec<&'static str> = Vec::new();
     for k in 0..steps(duration, setting.dt) {
         w.step()?;
+        note_scheme(&mut schemes, w.stats().integrator);
         let (l, e, wx) = angular(&w);
         dl = dl.max((l - l0).norm() / l0.norm());
         de = de.max((e - e0).abs() / e0);
@@ -441,9 +472,10 @@ fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
         figure,
         pass: figure < 1e-6 && period_error < 0.01,
         detail: format!(
-            "|ΔL|/L {dl:.1e}, |ΔE|/E {de:.1e}, flip period {} s vs {} s (error {period_error:.1e})",
+            "|ΔL|/L {dl:.1e}, |ΔE|/E {de:.1e}, flip period {} s vs {} s (error {period_error:.1e}); steps: {}",
             period.map_or("none".into(), |p| format!("{p:.4}")),
             reference.map_or("none".into(), |p| format!("{p:.4}")),
+            schemes.join(", "),
         ),
     })
 }
@@ -508,8 +540,10 @@ fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     let (mut w, m) = four_bar_world(options(setting))?;
     let e0 = w.total_energy();
     let (mut closure, mut de, mut kinetic) = (0.0f64, 0.0f64, 0.0f64);
+    let mut schemes: Vec<&'static str> = Vec::new();
     for _ in 0..steps(10.0, setting.dt) {
         w.step()?;
+        note_scheme(&mut schemes, w.stats().integrator);
         closure = closure.max(w.constraint_violation());
         let e = w.total_energy();
         de = de.max((e - e0).abs());
@@ -521,7 +555,10 @@ fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     Ok(Outcome {
         figure: closure,
         pass: closure < 1e-8 && relative < 1e-4,
-        detail: format!("|ΔE| = {relative:.1e} of the largest kinetic energy ({kinetic:.3} J)"),
+        detail: format!(
+            "|ΔE| = {relative:.1e} of the largest kinetic energy ({kinetic:.3} J); steps: {}",
+            schemes.join(", ")
+        ),
     })
 }
 
@@ -809,25 +846,35 @@ pub struct Cell {
     pub solver: String,
     /// Time step (s).
     pub dt: f64,
+    /// Integrator name (`semi-implicit-euler`, `rk4`, ...).
+    pub integrator: &'static str,
     /// The outcome, `None` when skipped (Lemke on large problems), or the step error.
     pub outcome: Option<Result<Outcome, String>>,
     /// Wall-clock seconds the cell took.
     pub seconds: f64,
 }
 
-/// Runs `cases` for every solver of `solvers` and time step of `dts`, calling `progress` after
-/// each cell.
+/// Runs `cases` for every solver of `solvers`, time step of `dts` and integrator of
+/// `integrators` (a case outside [`SMOOTH_CASES`] only with the first integrator: its steps
+/// have contacts, which the velocity-level step handles whatever the integrator), calling
+/// `progress` after each cell.
 pub fn run(
     cases: &[Case],
     solvers: &[SolverKind],
     dts: &[f64],
+    integrators: &[IntegratorKind],
     mut progress: impl FnMut(&Cell),
 ) -> Vec<Cell> {
     let mut cells = Vec::new();
     for case in cases {
+        let used = if SMOOTH_CASES.contains(&case.name) {
+            integrators
+        } else {
+            &integrators[..1.min(integrators.len())]
+        };
         for &dt in dts {
-            for &solver in solvers {
-                let setting = Setting { solver, dt };
+            for (&solver, &integrator) in used.iter().flat_map(|i| solvers.iter().map(move |s| (s, i))) {
+                let setting = Setting { solver, dt, integrator };
                 let start = std::time::Instant::now();
                 let outcome = if matches!(solver, SolverKind::Lemke { .. }) && !case.lemke {
                     None
@@ -838,6 +885,7 @@ pub fn run(
                     case: case.name,
                     solver: setting.solver_label(),
                     dt,
+                    integrator: integrator_name(&integrator),
                     outcome,
                     seconds: start.elapsed().as_secs_f64(),
                 };
@@ -861,8 +909,8 @@ fn cell_text(cell: &Cell) -> String {
     }
 }
 
-/// The report as a markdown table (one row per case and dt, one column per solver) followed by
-/// the criteria and each cell's detail.
+/// The report as a markdown table (one row per case, dt and integrator, one column per solver)
+/// followed by the criteria and each cell's detail.
 pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
     let mut solvers: Vec<String> = Vec::new();
     for c in cells {
@@ -870,26 +918,35 @@ pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
             solvers.push(c.solver.clone());
         }
     }
-    let mut out =
-        format!("| case | dt (s) | {} |\n|---|---|{}\n", solvers.join(" | "), "---|".repeat(solvers.len()));
-    let mut rows: Vec<(&str, u64)> = Vec::new();
+    let mut out = format!(
+        "| case | dt (s) | integrator | {} |\n|---|---|---|{}\n",
+        solvers.join(" | "),
+        "---|".repeat(solvers.len())
+    );
+    let mut rows: Vec<(&str, u64, &str)> = Vec::new();
     for c in cells {
-        let key = (c.case, c.dt.to_bits());
+        let key = (c.case, c.dt.to_bits(), c.integrator);
         if !rows.contains(&key) {
             rows.push(key);
         }
     }
-    for (case, dt) in rows {
+    for (case, dt, integrator) in rows {
         let texts: Vec<String> = solvers
             .iter()
             .map(|s| {
                 cells
                     .iter()
-                    .find(|c| c.case == case && c.dt.to_bits() == dt && &c.solver == s)
+                    .find(|c| {
+                        c.case == case && c.dt.to_bits() == dt && c.integrator == integrator && &c.solver == s
+                    })
                     .map_or("—".into(), cell_text)
             })
             .collect();
-        out += &format!("| {case} | {} | {} |\n", dt_label(f64::from_bits(dt)), texts.join(" | "));
+        out += &format!(
+            "| {case} | {} | {integrator} | {} |\n",
+            dt_label(f64::from_bits(dt)),
+            texts.join(" | ")
+        );
     }
     out += "\nCriteria (the figure in each cell):\n\n";
     for case in cases {
@@ -905,16 +962,16 @@ pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
             None => String::new(),
         };
         if !detail.is_empty() {
-            out += &format!("- {} {} dt {}: {}\n", c.case, c.solver, dt_label(c.dt), detail);
+            out += &format!("- {} {} dt {} {}: {}\n", c.case, c.solver, dt_label(c.dt), c.integrator, detail);
         }
     }
     out
 }
 
-/// The report as CSV: `case,solver,dt,pass,figure,seconds,detail` (pass is `skipped` or
-/// `error` when the cell did not run).
+/// The report as CSV: `case,solver,dt,integrator,pass,figure,seconds,detail` (pass is
+/// `skipped` or `error` when the cell did not run).
 pub fn csv(cells: &[Cell]) -> String {
-    let mut out = String::from("case,solver,dt,pass,figure,seconds,detail\n");
+    let mut out = String::from("case,solver,dt,integrator,pass,figure,seconds,detail\n");
     for c in cells {
         let (pass, figure, detail) = match &c.outcome {
             None => ("skipped".to_string(), String::new(), String::new()),
@@ -922,10 +979,11 @@ pub fn csv(cells: &[Cell]) -> String {
             Some(Ok(o)) => (o.pass.to_string(), format!("{:e}", o.figure), o.detail.clone()),
         };
         out += &format!(
-            "{},{},{},{},{},{:.3},\"{}\"\n",
+            "{},{},{},{},{},{},{:.3},\"{}\"\n",
             c.case,
             c.solver,
             c.dt,
+            c.integrator,
             pass,
             figure,
             c.seconds,

@@ -7,16 +7,21 @@
 //! [`crate::model::Joint::integrate_decoupled`]) → project loop closures onto their manifold
 //! ([`LoopProjection`]) → sleeping and statistics.
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
-//! instead of CRBA); sleeping islands are skipped entirely.
+//! instead of CRBA); sleeping islands are skipped entirely. With an integrator other than the
+//! default semi-implicit Euler ([`WorldOptions::integrator`]), steps without contacts, limits,
+//! motors or joint friction replace free motion, rows, solve and integration by that integrator
+//! (loop closures at the acceleration level): see [`smooth`].
 
 mod multibody;
 mod options;
 mod projection;
 mod sleep;
+pub mod smooth;
 
 pub use multibody::{Motor, Multibody, PoseServo, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
 pub use projection::LoopProjection;
+pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
@@ -25,6 +30,7 @@ use crate::constraints::{
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
+use crate::integrators::{IntegratorError, IntegratorKind};
 use crate::math::{Transform, Vec3};
 use crate::model::{Model, Shape};
 use crate::solvers::{Fallback, SolverChain, SolverError};
@@ -60,6 +66,15 @@ pub enum StepError {
     /// Every solver of the chain failed.
     #[error(transparent)]
     Solver(#[from] SolverError),
+    /// The smooth integrator failed for another reason than the dynamics (an adaptive step
+    /// size that underflowed).
+    #[error("multibody `{multibody}`: {source}")]
+    Integrator {
+        /// Multibody name.
+        multibody: String,
+        /// The error.
+        source: IntegratorError,
+    },
     /// A multibody or body index out of range.
     #[error("index {index} is out of range ({count} {what})")]
     IndexOutOfRange {
@@ -105,6 +120,9 @@ pub struct StepStats {
     /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
     /// integration + sleeping.
     pub phase_ns: [u64; 6],
+    /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step, else the
+    /// name of [`WorldOptions::integrator`] (a smooth step, see [`smooth`]).
+    pub integrator: &'static str,
 }
 
 /// A simulated world.
@@ -120,6 +138,8 @@ pub struct World {
     /// Per multibody, the buffers of the position projection of its own loop closures (None
     /// without loops within it).
     projections: Vec<Option<projection::ProjectionBuffers>>,
+    /// The integrators of smooth steps, built at the first smooth step.
+    smooth: smooth::SmoothSteppers,
     chain: SolverChain,
     builder: ProblemBuilder,
     problem: ConstraintProblem,
@@ -157,6 +177,7 @@ impl World {
             pair_parameters: HashMap::new(),
             loops: Vec::new(),
             projections: Vec::new(),
+            smooth: smooth::SmoothSteppers::default(),
             problem: ConstraintProblem::default(),
             lambda: DVector::zeros(0),
             warm: HashMap::new(),
@@ -244,6 +265,11 @@ impl World {
     pub fn set_solvers(&mut self, solvers: Vec<SolverKind>) {
         self.options.solvers = solvers;
         self.chain = self.options.chain();
+    }
+
+    /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
+    pub fn set_integrator(&mut self, integrator: IntegratorKind) {
+        self.options.integrator = integrator;
     }
 
     /// Replaces the sleeping parameters; disabling sleep wakes every multibody.
@@ -495,6 +521,12 @@ impl World {
             }
         }
         lap(1, &mut clock);
+        // Smooth step (no inequality rows, an integrator chosen): phases 4–6 are skipped and
+        // phase 7 integrates with the chosen scheme (smooth.rs).
+        let smooth = smooth::applies(self);
+        if smooth {
+            self.smooth.prepare(self.options.integrator, &self.bodies, &self.loops);
+        }
         // 4. Free motion.
         let has_rows = !self.contacts.is_empty()
             || !self.loops.is_empty()
@@ -507,7 +539,7 @@ impl World {
             });
         for i in 0..self.bodies.len() {
             let b = &mut self.bodies[i];
-            if b.asleep {
+            if b.asleep || smooth {
                 b.v_free.fill(0.0);
                 continue;
             }
@@ -522,7 +554,7 @@ impl World {
         lap(2, &mut clock);
         // 5. Constraint rows.
         self.builder.clear();
-        if has_rows {
+        if has_rows && !smooth {
             self.add_rows(h);
         }
         let rows = self.builder.len();
@@ -574,6 +606,21 @@ impl World {
             if b.asleep {
                 b.v_next.fill(0.0);
                 b.q_next.copy_from(&b.state.q);
+                continue;
+            }
+            if smooth {
+                let closures =
+                    self.loops.iter().filter(move |(a, b, _)| *a == i && *b == i).map(|(_, _, c)| c);
+                let name = &self.names[i];
+                self.smooth
+                    .advance(i, b, closures, self.projections[i].as_mut(), &self.options.loop_projection, h)
+                    .map_err(|source| match source {
+                        IntegratorError::Dynamics(source) => {
+                            StepError::Dynamics { multibody: name.clone(), source }
+                        }
+                        source => StepError::Integrator { multibody: name.clone(), source },
+                    })?;
+                check_finite(name, &b.model, &b.q_next, &b.v_next, true)?;
                 continue;
             }
             b.v_next.copy_from(&self.v_free_all.rows(b.col, nv));
@@ -635,6 +682,11 @@ impl World {
             momentum,
             constraint_violation,
             phase_ns: phase,
+            integrator: if smooth {
+                smooth::integrator_name(&self.options.integrator)
+            } else {
+                "semi-implicit-euler"
+            },
         };
         Ok(&self.stats)
     }

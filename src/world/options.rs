@@ -3,6 +3,7 @@
 
 use crate::collision::CollisionOptions;
 use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters};
+use crate::integrators::IntegratorKind;
 use crate::math::Vec3;
 use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, PgsSolver, SolverChain};
 
@@ -110,6 +111,10 @@ pub struct WorldOptions {
     pub diagnostics: bool,
     /// Position-level projection of loop closures after each step.
     pub loop_projection: super::LoopProjection,
+    /// Integrator of the steps without contacts, limits, motors or joint friction (see
+    /// [`super::smooth`]); the default, semi-implicit Euler, keeps the velocity-level step for
+    /// every step.
+    pub integrator: IntegratorKind,
 }
 
 impl Default for WorldOptions {
@@ -128,6 +133,7 @@ impl Default for WorldOptions {
             sleep: SleepOptions::default(),
             diagnostics: false,
             loop_projection: super::LoopProjection::default(),
+            integrator: IntegratorKind::SemiImplicitEuler,
         }
     }
 }

@@ -181,7 +181,7 @@ impl ProjectionBuffers {
 
 /// In-place Cholesky factor `G = L Lᵀ` of a symmetric positive-definite `n × n` row-major
 /// matrix (L in the lower triangle).
-fn cholesky_in_place(g: &mut [f64], n: usize) {
+pub(super) fn cholesky_in_place(g: &mut [f64], n: usize) {
     for j in 0..n {
         let mut d = g[j * n + j];
         for k in 0..j {
@@ -200,7 +200,7 @@ fn cholesky_in_place(g: &mut [f64], n: usize) {
 }
 
 /// Solves `L Lᵀ x = b` in place with the factor of [`cholesky_in_place`].
-fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
+pub(super) fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
     for i in 0..n {
         let mut s = x[i];
         for k in 0..i {
