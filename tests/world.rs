@@ -509,3 +509,36 @@ fn a_spinning_free_body_keeps_its_straight_line_velocity() {
         assert!((speed - 1.0).abs() < 1e-12, "step {k}: speed {speed}");
     }
 }
+
+/// Equal boxes stacked face on face have their corners exactly on each other's face edges,
+/// where the box–box clipping decides by rounding: without the corner completion of the narrow
+/// phase a 20-stack's pairs had 2, 3 or 4 contacts from step to step (156…240 rows), and the
+/// stack settled by 2.4 mm under clarabel. Every pair keeps its 4 corners while it rests.
+#[test]
+fn a_stack_of_equal_boxes_keeps_four_contacts_per_face() {
+    let mut options = WorldOptions { solvers: vec![SolverKind::Clarabel], ..exact_options() };
+    options.dt = 1.0 / 60.0;
+    options.sleep.enabled = false;
+    let mut w = world_with_ground(options, Vec3::z());
+    let side = 0.1;
+    let count = 20;
+    let mut top = 0;
+    for k in 0..count {
+        let size = Vec3::repeat(side);
+        top = w
+            .add_multibody(
+                &format!("box{k}"),
+                lone_body("box", Shape::Box { size }, RigidInertia::solid_box(1.0, size)),
+                &MeshOptions::default(),
+            )
+            .unwrap();
+        w.multibody_mut(top).state.q[2] = side / 2.0 + side * k as f64;
+    }
+    let start = w.multibody(top).state.q[2];
+    for step in 0..60 {
+        let rows = w.step().unwrap().rows;
+        assert_eq!(rows, 3 * 4 * count, "step {step}: {rows} rows, not 4 contacts per face");
+    }
+    let drift = (w.multibody(top).state.q[2] - start).abs();
+    assert!(drift < 1e-6, "the top box moved {drift} m in 1 s");
+}
