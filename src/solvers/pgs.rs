@@ -4,7 +4,7 @@
 //! together and projected onto the cone (or pyramid) of the current normal impulse. Warm-started
 //! from the impulses passed in (the last step's, matched by the caller).
 
-use super::residuals::pyramid_facet;
+use super::residuals::{norm2, pyramid_facet};
 use super::{check_problem, ConstraintSolver, SolveInfo, SolverError};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
@@ -238,7 +238,7 @@ fn friction_block_step(
         (s1, s2)
     };
     let (s1, s2) = scaled(free);
-    if s1.hypot(s2) <= bound {
+    if norm2(s1, s2) <= bound {
         return Some((mu[0] * s1, mu[1] * s2));
     }
     if bound <= 0.0 || mu[0] <= 0.0 || mu[1] <= 0.0 {
@@ -259,7 +259,7 @@ fn friction_block_step(
     let mut gamma: f64 = 0.0;
     for _ in 0..30 {
         let (s, ds) = solve(gamma);
-        let norm = s[0].hypot(s[1]);
+        let norm = norm2(s[0], s[1]);
         if norm <= 0.0 {
             break;
         }
@@ -273,7 +273,7 @@ fn friction_block_step(
     }
     let (s, _) = solve(gamma);
     // Land exactly on the boundary.
-    let norm = s[0].hypot(s[1]);
+    let norm = norm2(s[0], s[1]);
     let k = if norm > 0.0 { bound / norm } else { 0.0 };
     Some((mu[0] * s[0] * k, mu[1] * s[1] * k))
 }
