@@ -11,7 +11,7 @@ use super::check::{check_q, check_v};
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::math::{skew, Force, Mat3, Mat6, Motion, Transform, Vec3, Vec6};
+use crate::math::{rotate_symmetric, Force, Mat3, Mat6, Motion, Transform, Vec3, Vec6};
 use crate::model::Model;
 use nalgebra::DVector;
 
@@ -59,37 +59,62 @@ pub fn aba<'d>(
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
         let ia = data.ia[i];
         let pa = data.pa[i].to_vector();
-        let mut d = Mat6::identity();
-        for a in 0..nv {
-            let u = ia * data.s[iv + a].to_vector();
-            data.u[iv + a] = u;
-            data.u_bias[iv + a] = tau[iv + a] - data.s[iv + a].to_vector().dot(&pa);
-            for b in 0..=a {
-                let dab = data.s[iv + b].to_vector().dot(&u);
-                d[(a, b)] = dab;
-                d[(b, a)] = dab;
-            }
-        }
         let scale = (0..6).map(|k| ia[(k, k)].abs()).fold(0.0, f64::max);
-        data.d_inv[i] = invert_spd_block(&d, nv, PIVOT_TOLERANCE * scale)
-            .ok_or_else(|| DynamicsError::SingularMassMatrix { joint: model.joint_name(i).to_string() })?;
-        if p == 0 {
-            continue;
-        }
-        let d_inv = &data.d_inv[i];
-        let mut ia_a = ia;
-        let mut pa_a = pa;
-        for b in 0..nv {
-            let mut w = Vec6::zeros();
-            for a in 0..nv {
-                w += data.u[iv + a] * d_inv[(a, b)];
+        let singular = || DynamicsError::SingularMassMatrix { joint: model.joint_name(i).to_string() };
+        let (ia_a, pa_a) = if nv == 1 {
+            // One dof (hinges, sliders: every joint of a chain like the pendulum's): D is a
+            // scalar and `U D⁻¹ Uᵀ` a rank-one update.
+            let s = data.s[iv];
+            let u = mul_subspace(&ia, &s);
+            let d = s.to_vector().dot(&u);
+            // `!(d > tol)` also catches NaN.
+            if !(d > PIVOT_TOLERANCE * scale) {
+                return Err(singular());
             }
-            ia_a -= w * data.u[iv + b].transpose();
-            pa_a += w * data.u_bias[iv + b];
-        }
-        pa_a += ia_a * data.c_j[i].to_vector();
+            let d_inv = 1.0 / d;
+            let u_bias = tau[iv] - s.to_vector().dot(&pa);
+            data.u[iv] = u;
+            data.u_bias[iv] = u_bias;
+            data.d_inv[i][(0, 0)] = d_inv;
+            if p == 0 {
+                continue;
+            }
+            let ud = u * d_inv;
+            let ia_a = ia - ud * u.transpose();
+            let pa_a = pa + ia_a * data.c_j[i].to_vector() + ud * u_bias;
+            (ia_a, pa_a)
+        } else {
+            let mut d = Mat6::identity();
+            for a in 0..nv {
+                let u = ia * data.s[iv + a].to_vector();
+                data.u[iv + a] = u;
+                data.u_bias[iv + a] = tau[iv + a] - data.s[iv + a].to_vector().dot(&pa);
+                for b in 0..=a {
+                    let dab = data.s[iv + b].to_vector().dot(&u);
+                    d[(a, b)] = dab;
+                    d[(b, a)] = dab;
+                }
+            }
+            data.d_inv[i] = invert_spd_block(&d, nv, PIVOT_TOLERANCE * scale).ok_or_else(singular)?;
+            if p == 0 {
+                continue;
+            }
+            let d_inv = &data.d_inv[i];
+            let mut ia_a = ia;
+            let mut pa_a = pa;
+            for b in 0..nv {
+                let mut w = Vec6::zeros();
+                for a in 0..nv {
+                    w += data.u[iv + a] * d_inv[(a, b)];
+                }
+                ia_a -= w * data.u[iv + b].transpose();
+                pa_a += w * data.u_bias[iv + b];
+            }
+            pa_a += ia_a * data.c_j[i].to_vector();
+            (ia_a, pa_a)
+        };
         let x = data.x_pb[i];
-        data.ia[p] += articulated_to_parent(&ia_a, &x);
+        add_articulated_to_parent(&ia_a, &x, &mut data.ia[p]);
         data.pa[p] += x.act_force(&Force::from_vector(&pa_a));
     }
 
@@ -104,10 +129,16 @@ pub fn aba<'d>(
             *rb = data.u_bias[iv + b] - data.u[iv + b].dot(&a_vec);
         }
         let mut a_i = a_prime;
-        for a in 0..nv {
-            let qdd: f64 = (0..nv).map(|b| data.d_inv[i][(a, b)] * r[b]).sum();
-            data.ddq[iv + a] = qdd;
-            a_i += data.s[iv + a] * qdd;
+        if nv == 1 {
+            let qdd = data.d_inv[i][(0, 0)] * r[0];
+            data.ddq[iv] = qdd;
+            a_i += data.s[iv] * qdd;
+        } else {
+            for a in 0..nv {
+                let qdd: f64 = (0..nv).map(|b| data.d_inv[i][(a, b)] * r[b]).sum();
+                data.ddq[iv + a] = qdd;
+                a_i += data.s[iv + a] * qdd;
+            }
         }
         data.a[i] = a_i;
     }
@@ -165,24 +196,42 @@ fn invert_spd_block(d: &Mat6, n: usize, tolerance: f64) -> Option<Mat6> {
     Some(inv)
 }
 
-/// `^λX*_i Iᵃ ⁱX_λ`: an articulated inertia (blocks `[[A, B], [Bᵀ, C]]`, body frame) expressed in
-/// the parent frame, for `x` the body's pose in the parent. With `T = [t]×` and rotated blocks
-/// `A' = R A Rᵀ` etc.: `A_p = A'`, `B_p = B' − A' T`, `C_p = C' + T B' + (T B')ᵀ − T A' T`.
-fn articulated_to_parent(ia: &Mat6, x: &Transform) -> Mat6 {
+/// `ia · s` for a motion-subspace column `s`; a purely angular column (every hinge) touches
+/// only the angular columns of `ia`.
+#[inline]
+fn mul_subspace(ia: &Mat6, s: &Motion) -> Vec6 {
+    if s.linear == Vec3::zeros() {
+        ia.fixed_columns::<3>(3) * s.angular
+    } else {
+        ia * s.to_vector()
+    }
+}
+
+/// `out += ^λX*_i Iᵃ ⁱX_λ`: an articulated inertia (blocks `[[A, B], [Bᵀ, C]]`, body frame, A and
+/// C symmetric) expressed in the parent frame, for `x` the body's pose in the parent. With
+/// `T = [t]×` and rotated blocks `A' = R A Rᵀ` etc.: `A_p = A'`, `B_p = B' − A' T`,
+/// `C_p = C' + T B' + (T B')ᵀ − T A' T`. Products with T are cross products with t
+/// (`A' T = −(T A')ᵀ` as A' is symmetric).
+fn add_articulated_to_parent(ia: &Mat6, x: &Transform, out: &mut Mat6) {
     let r = &x.rotation;
-    let rt = r.transpose();
-    let a: Mat3 = r * ia.fixed_view::<3, 3>(0, 0) * rt;
-    let b: Mat3 = r * ia.fixed_view::<3, 3>(0, 3) * rt;
-    let c: Mat3 = r * ia.fixed_view::<3, 3>(3, 3) * rt;
-    let t = skew(&x.translation);
-    let at = a * t;
+    let t = &x.translation;
+    let a: Mat3 = rotate_symmetric(r, &ia.fixed_view::<3, 3>(0, 0).into_owned());
+    let b: Mat3 = r * ia.fixed_view::<3, 3>(0, 3) * r.transpose();
+    let c: Mat3 = rotate_symmetric(r, &ia.fixed_view::<3, 3>(3, 3).into_owned());
+    let cross_columns =
+        |m: &Mat3| Mat3::from_columns(&[t.cross(&m.column(0)), t.cross(&m.column(1)), t.cross(&m.column(2))]);
+    let ta = cross_columns(&a); // T A'
+    let at = -ta.transpose(); // A' T
     let b_p = b - at;
-    let tb = t * b;
-    let c_p = c + tb + tb.transpose() - t * at;
-    let mut out = Mat6::zeros();
-    out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
-    out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b_p);
-    out.fixed_view_mut::<3, 3>(3, 0).copy_from(&b_p.transpose());
-    out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c_p);
-    out
+    let tb = cross_columns(&b);
+    let tat = cross_columns(&at); // T A' T
+    let c_p = c + tb + tb.transpose() - tat;
+    let mut block = |row: usize, col: usize, m: &Mat3| {
+        let mut view = out.fixed_view_mut::<3, 3>(row, col);
+        view += m;
+    };
+    block(0, 0, &a);
+    block(0, 3, &b_p);
+    block(3, 0, &b_p.transpose());
+    block(3, 3, &c_p);
 }
