@@ -1,17 +1,23 @@
 //! Articulated-body algorithm (Featherstone, RBDA §7.3): forward dynamics
-//! `q̈ = M(q)⁻¹ (τ − C(q, v) v − g(q))` in O(n), in body frames.
+//! `q̈ = M(q)⁻¹ (τ − C(q, v) v − g(q))` in O(n), in world axes about a reference point at the
+//! first body's origin (Pinocchio's world-frame variant, as in [`super::crba`]).
 //!
-//! Pass 1: velocities `v_i`, bias accelerations `c_i = cJ_i + v_i × vJ_i`, `Iᴬ_i = I_i`,
+//! Spatial quantities of every body are taken to that one frame in the first pass, so that
+//! articulated inertias and forces add into the parent without the `^λX*_i Iᵃ ⁱX_λ` transform of
+//! the body-frame algorithm (its most expensive step); the reference point near the bodies rather
+//! than at the world origin keeps the inertias free of m·|p|² terms far from the origin.
+//!
+//! Pass 1: poses `X_i`, columns `S_i = X_i S_i^body`, velocities `v_i = v_λ + S_i q̇_i`, bias
+//! accelerations `c_i = v_i × S_i q̇_i + X_i cJ_i`, `Iᴬ_i = X_i* I_i X_i⁻¹`,
 //! `pᴬ_i = v_i ×* I_i v_i`. Pass 2 (leaves to root): `U = Iᴬ S`, `D = Sᵀ U`, `u = τ − Sᵀ pᴬ`,
-//! `Iᵃ = Iᴬ − U D⁻¹ Uᵀ`, `pᵃ = pᴬ + Iᵃ c + U D⁻¹ u`, added into the parent through `^λX*_i`.
-//! Pass 3 (root to leaves): `a' = ⁱX_λ a_λ + c_i`, `q̈_i = D⁻¹ (u − Uᵀ a')`, `a_i = a' + S q̈_i`,
-//! with `a_0 = −g`.
+//! `Iᴬ_λ += Iᴬ − U D⁻¹ Uᵀ`, `pᴬ_λ += pᴬ + Iᴬ c + U D⁻¹ (u − Uᵀ c)`. Pass 3 (root to leaves):
+//! `a' = a_λ + c_i`, `q̈_i = D⁻¹ (u − Uᵀ a')`, `a_i = a' + S q̈_i`, with `a_0 = −g`.
 
 use super::check::{check_q, check_v};
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::math::{rotate_symmetric, Force, Mat3, Mat6, Motion, Transform, Vec3, Vec6};
+use crate::math::{Mat6, Motion, Transform, Vec3, Vec6};
 use crate::model::Model;
 use nalgebra::DVector;
 
@@ -20,7 +26,8 @@ const PIVOT_TOLERANCE: f64 = 1e-12;
 
 /// Forward dynamics by the articulated-body algorithm: generalized accelerations for joint forces
 /// `tau` (N·m / N) at state (q, v), written to `data.ddq` and returned. A joint whose moving
-/// subtree has no inertia along its motion gives [`DynamicsError::SingularMassMatrix`].
+/// subtree has no inertia along its motion gives [`DynamicsError::SingularMassMatrix`]. Also
+/// leaves the body poses in `data.x_wb`.
 pub fn aba<'d>(
     model: &Model,
     data: &'d mut Data,
@@ -32,65 +39,79 @@ pub fn aba<'d>(
     check_v(model, v, "v")?;
     check_v(model, tau, "tau")?;
     let n = model.nbodies();
-    data.v[0] = Motion::zero();
+    data.aba_v[0] = Motion::zero();
+    let mut reference = Vec3::zeros();
     for i in 1..n {
         joint_step(model, data, q, i);
         let (p, iv, joint) = (model.parents[i], model.idx_v[i], &model.joints[i]);
         let nv = joint.nv();
-        let s = &data.s[iv..iv + nv];
+        data.x_wb[i] = data.x_wb[p] * data.x_pb[i];
+        if i == 1 {
+            reference = data.x_wb[1].translation;
+        }
+        let x =
+            Transform { rotation: data.x_wb[i].rotation, translation: data.x_wb[i].translation - reference };
         let vq = &v.as_slice()[iv..iv + nv];
         let mut v_j = Motion::zero();
-        for (col, vk) in s.iter().zip(vq) {
-            v_j += *col * *vk;
+        for k in 0..nv {
+            let column = x.act_motion(&data.s[iv + k]);
+            data.j_crba[iv + k] = column;
+            v_j += column * vq[k];
         }
-        let v_i = data.x_pb[i].act_inv_motion(&data.v[p]) + v_j;
+        let v_i = data.aba_v[p] + v_j;
         let mut c = v_i.cross(&v_j);
         if joint.has_bias() {
-            c += joint.bias(s, vq);
+            c += x.act_motion(&joint.bias(&data.s[iv..iv + nv], vq));
         }
-        let inertia = &model.inertias[i];
-        data.v[i] = v_i;
+        let inertia = model.inertias[i].transformed(&x);
+        data.aba_v[i] = v_i;
         data.c_j[i] = c;
-        data.ia[i] = inertia.to_matrix();
+        inertia.write_matrix(&mut data.ia[i]);
         data.pa[i] = v_i.cross_force(&inertia.mul_motion(&v_i));
     }
 
     for i in (1..n).rev() {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        let ia = data.ia[i];
+        let (done, rest) = data.ia.split_at_mut(i);
+        let ia = &rest[0];
         let pa = data.pa[i].to_vector();
+        let c = data.c_j[i].to_vector();
         let scale = (0..6).map(|k| ia[(k, k)].abs()).fold(0.0, f64::max);
         let singular = || DynamicsError::SingularMassMatrix { joint: model.joint_name(i).to_string() };
-        let (ia_a, pa_a) = if nv == 1 {
+        if nv == 1 {
             // One dof (hinges, sliders: every joint of a chain like the pendulum's): D is a
             // scalar and `U D⁻¹ Uᵀ` a rank-one update.
-            let s = data.s[iv];
-            let u = mul_subspace(&ia, &s);
-            let d = s.to_vector().dot(&u);
+            let s = data.j_crba[iv].to_vector();
+            let u = ia * s;
+            let d = s.dot(&u);
             // `!(d > tol)` also catches NaN.
             if !(d > PIVOT_TOLERANCE * scale) {
                 return Err(singular());
             }
             let d_inv = 1.0 / d;
-            let u_bias = tau[iv] - s.to_vector().dot(&pa);
+            let u_bias = tau[iv] - s.dot(&pa);
             data.u[iv] = u;
             data.u_bias[iv] = u_bias;
             data.d_inv[i][(0, 0)] = d_inv;
             if p == 0 {
                 continue;
             }
-            let ud = u * d_inv;
-            let ia_a = ia - ud * u.transpose();
-            let pa_a = pa + ia_a * data.c_j[i].to_vector() + ud * u_bias;
-            (ia_a, pa_a)
+            // pᴬ_λ += pᴬ + Iᴬ c + U D⁻¹ (u − Uᵀ c), Iᴬ_λ += Iᴬ − U D⁻¹ Uᵀ.
+            let pa_a = pa + ia * c + u * (d_inv * (u_bias - u.dot(&c)));
+            let parent = &mut done[p];
+            *parent += ia;
+            parent.ger(-d_inv, &u, &u, 1.0);
+            data.pa[p].linear += pa_a.fixed_rows::<3>(0);
+            data.pa[p].angular += pa_a.fixed_rows::<3>(3);
         } else {
             let mut d = Mat6::identity();
             for a in 0..nv {
-                let u = ia * data.s[iv + a].to_vector();
+                let s_a = data.j_crba[iv + a].to_vector();
+                let u = ia * s_a;
                 data.u[iv + a] = u;
-                data.u_bias[iv + a] = tau[iv + a] - data.s[iv + a].to_vector().dot(&pa);
+                data.u_bias[iv + a] = tau[iv + a] - s_a.dot(&pa);
                 for b in 0..=a {
-                    let dab = data.s[iv + b].to_vector().dot(&u);
+                    let dab = data.j_crba[iv + b].to_vector().dot(&u);
                     d[(a, b)] = dab;
                     d[(b, a)] = dab;
                 }
@@ -100,7 +121,7 @@ pub fn aba<'d>(
                 continue;
             }
             let d_inv = &data.d_inv[i];
-            let mut ia_a = ia;
+            let mut ia_a = *ia;
             let mut pa_a = pa;
             for b in 0..nv {
                 let mut w = Vec6::zeros();
@@ -110,37 +131,35 @@ pub fn aba<'d>(
                 ia_a -= w * data.u[iv + b].transpose();
                 pa_a += w * data.u_bias[iv + b];
             }
-            pa_a += ia_a * data.c_j[i].to_vector();
-            (ia_a, pa_a)
-        };
-        let x = data.x_pb[i];
-        add_articulated_to_parent(&ia_a, &x, &mut data.ia[p]);
-        data.pa[p] += x.act_force(&Force::from_vector(&pa_a));
+            pa_a += ia_a * c;
+            done[p] += ia_a;
+            data.pa[p].linear += pa_a.fixed_rows::<3>(0);
+            data.pa[p].angular += pa_a.fixed_rows::<3>(3);
+        }
     }
 
-    let a0 = Motion::new(-model.gravity, Vec3::zeros());
+    data.aba_a[0] = Motion::new(-model.gravity, Vec3::zeros());
     for i in 1..n {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        let a_parent = if p == 0 { a0 } else { data.a[p] };
-        let a_prime = data.x_pb[i].act_inv_motion(&a_parent) + data.c_j[i];
+        let a_prime = data.aba_a[p] + data.c_j[i];
         let a_vec = a_prime.to_vector();
-        let mut r = [0.0; 6];
-        for (b, rb) in r.iter_mut().enumerate().take(nv) {
-            *rb = data.u_bias[iv + b] - data.u[iv + b].dot(&a_vec);
-        }
         let mut a_i = a_prime;
         if nv == 1 {
-            let qdd = data.d_inv[i][(0, 0)] * r[0];
+            let qdd = data.d_inv[i][(0, 0)] * (data.u_bias[iv] - data.u[iv].dot(&a_vec));
             data.ddq[iv] = qdd;
-            a_i += data.s[iv] * qdd;
+            a_i += data.j_crba[iv] * qdd;
         } else {
+            let mut r = [0.0; 6];
+            for (b, rb) in r.iter_mut().enumerate().take(nv) {
+                *rb = data.u_bias[iv + b] - data.u[iv + b].dot(&a_vec);
+            }
             for a in 0..nv {
                 let qdd: f64 = (0..nv).map(|b| data.d_inv[i][(a, b)] * r[b]).sum();
                 data.ddq[iv + a] = qdd;
-                a_i += data.s[iv + a] * qdd;
+                a_i += data.j_crba[iv + a] * qdd;
             }
         }
-        data.a[i] = a_i;
+        data.aba_a[i] = a_i;
     }
     Ok(&data.ddq)
 }
@@ -194,44 +213,4 @@ fn invert_spd_block(d: &Mat6, n: usize, tolerance: f64) -> Option<Mat6> {
         }
     }
     Some(inv)
-}
-
-/// `ia · s` for a motion-subspace column `s`; a purely angular column (every hinge) touches
-/// only the angular columns of `ia`.
-#[inline]
-fn mul_subspace(ia: &Mat6, s: &Motion) -> Vec6 {
-    if s.linear == Vec3::zeros() {
-        ia.fixed_columns::<3>(3) * s.angular
-    } else {
-        ia * s.to_vector()
-    }
-}
-
-/// `out += ^λX*_i Iᵃ ⁱX_λ`: an articulated inertia (blocks `[[A, B], [Bᵀ, C]]`, body frame, A and
-/// C symmetric) expressed in the parent frame, for `x` the body's pose in the parent. With
-/// `T = [t]×` and rotated blocks `A' = R A Rᵀ` etc.: `A_p = A'`, `B_p = B' − A' T`,
-/// `C_p = C' + T B' + (T B')ᵀ − T A' T`. Products with T are cross products with t
-/// (`A' T = −(T A')ᵀ` as A' is symmetric).
-fn add_articulated_to_parent(ia: &Mat6, x: &Transform, out: &mut Mat6) {
-    let r = &x.rotation;
-    let t = &x.translation;
-    let a: Mat3 = rotate_symmetric(r, &ia.fixed_view::<3, 3>(0, 0).into_owned());
-    let b: Mat3 = r * ia.fixed_view::<3, 3>(0, 3) * r.transpose();
-    let c: Mat3 = rotate_symmetric(r, &ia.fixed_view::<3, 3>(3, 3).into_owned());
-    let cross_columns =
-        |m: &Mat3| Mat3::from_columns(&[t.cross(&m.column(0)), t.cross(&m.column(1)), t.cross(&m.column(2))]);
-    let ta = cross_columns(&a); // T A'
-    let at = -ta.transpose(); // A' T
-    let b_p = b - at;
-    let tb = cross_columns(&b);
-    let tat = cross_columns(&at); // T A' T
-    let c_p = c + tb + tb.transpose() - tat;
-    let mut block = |row: usize, col: usize, m: &Mat3| {
-        let mut view = out.fixed_view_mut::<3, 3>(row, col);
-        view += m;
-    };
-    block(0, 0, &a);
-    block(0, 3, &b_p);
-    block(3, 0, &b_p.transpose());
-    block(3, 3, &c_p);
 }

@@ -20,7 +20,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) -> R
 }
 
 /// Joint `i`'s transform and subspace at `q`: sets `data.x_pb[i]` and `data.s` of its dofs.
-#[inline]
+#[inline(always)]
 pub(crate) fn joint_step(model: &Model, data: &mut Data, q: &DVector<f64>, i: usize) {
     let joint = &model.joints[i];
     let (iq, iv) = (model.idx_q[i], model.idx_v[i]);

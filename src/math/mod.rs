@@ -18,7 +18,6 @@ mod motion;
 mod transform;
 
 pub use force::Force;
-pub(crate) use inertia::rotate_symmetric;
 pub use inertia::SpatialInertia;
 pub use motion::Motion;
 pub use transform::{axis_angle, exp3, log3, skew, Transform};
