@@ -53,10 +53,10 @@ pub fn aba<'d>(
             Transform { rotation: data.x_wb[i].rotation, translation: data.x_wb[i].translation - reference };
         let vq = &v.as_slice()[iv..iv + nv];
         let mut v_j = Motion::zero();
-        for k in 0..nv {
+        for (k, vk) in vq.iter().enumerate() {
             let column = x.act_motion(&data.s[iv + k]);
             data.j_crba[iv + k] = column;
-            v_j += column * vq[k];
+            v_j += column * *vk;
         }
         let v_i = data.aba_v[p] + v_j;
         let mut c = v_i.cross(&v_j);
@@ -84,8 +84,7 @@ pub fn aba<'d>(
             let s = data.j_crba[iv].to_vector();
             let u = ia * s;
             let d = s.dot(&u);
-            // `!(d > tol)` also catches NaN.
-            if !(d > PIVOT_TOLERANCE * scale) {
+            if d.is_nan() || d <= PIVOT_TOLERANCE * scale {
                 return Err(singular());
             }
             let d_inv = 1.0 / d;

@@ -414,9 +414,12 @@ pub fn run(
     report.mujoco = read_mujoco_points(&options.peers_dir.join("README.md"));
     report.goal = goal_check(&report.rows, &report.mujoco);
     report.notes.push(format!(
-        "build: {}; up to {} timed repeat(s) per configuration (one for runs over 0.5 s), median",
+        "build: {}; {} timed repeat(s) per configuration, more for short runs until {} s are timed (at most {}), one for runs over {} s; median",
         if cfg!(debug_assertions) { "debug (timings not representative)" } else { "release" },
-        repeats
+        repeats,
+        super::speed_error_scenes::MIN_TIMED,
+        super::speed_error_scenes::MAX_REPEATS,
+        super::speed_error_scenes::LONG_RUN
     ));
     Ok(report)
 }
