@@ -1,23 +1,24 @@
 //! Articulated-body algorithm (Featherstone, RBDA §7.3): forward dynamics
-//! `q̈ = M(q)⁻¹ (τ − C(q, v) v − g(q))` in O(n), in world axes about a reference point at the
-//! first body's origin (Pinocchio's world-frame variant, as in [`super::crba`]).
+//! `q̈ = M(q)⁻¹ (τ − C(q, v) v − g(q))` in O(n). Each body's quantities are expressed in world
+//! axes about the body's own origin: joint columns, inertias and velocities are turned to world
+//! axes once in the first pass, so that passing an articulated inertia or force to the parent is
+//! a pure shift by the lever arm between the two origins, without the rotations of the
+//! body-frame algorithm's `^λX*_i Iᵃ ⁱX_λ`; about the body's own origin (not one reference point
+//! for the whole tree, Pinocchio's world-frame variant) no quantity carries m·|p|² terms of
+//! distant bodies, so long chains keep the body-frame algorithm's digits.
 //!
-//! Spatial quantities of every body are taken to that one frame in the first pass, so that
-//! articulated inertias and forces add into the parent without the `^λX*_i Iᵃ ⁱX_λ` transform of
-//! the body-frame algorithm (its most expensive step); the reference point near the bodies rather
-//! than at the world origin keeps the inertias free of m·|p|² terms far from the origin.
-//!
-//! Pass 1: poses `X_i`, columns `S_i = X_i S_i^body`, velocities `v_i = v_λ + S_i q̇_i`, bias
-//! accelerations `c_i = v_i × S_i q̇_i + X_i cJ_i`, `Iᴬ_i = X_i* I_i X_i⁻¹`,
+//! Pass 1: poses, columns `S_i = R_i S_i^body`, velocities `v_i = shift(v_λ) + S_i q̇_i`, bias
+//! accelerations `c_i = v_i × S_i q̇_i + R_i cJ_i`, `Iᴬ_i = I_i` in world axes,
 //! `pᴬ_i = v_i ×* I_i v_i`. Pass 2 (leaves to root): `U = Iᴬ S`, `D = Sᵀ U`, `u = τ − Sᵀ pᴬ`,
-//! `Iᴬ_λ += Iᴬ − U D⁻¹ Uᵀ`, `pᴬ_λ += pᴬ + Iᴬ c + U D⁻¹ (u − Uᵀ c)`. Pass 3 (root to leaves):
-//! `a' = a_λ + c_i`, `q̈_i = D⁻¹ (u − Uᵀ a')`, `a_i = a' + S q̈_i`, with `a_0 = −g`.
+//! `Iᴬ_λ += shift(Iᴬ − U D⁻¹ Uᵀ)`, `pᴬ_λ += shift(pᴬ + Iᴬ c + U D⁻¹ (u − Uᵀ c))`. Pass 3 (root to
+//! leaves): `a' = shift(a_λ) + c_i`, `q̈_i = D⁻¹ (u − Uᵀ a')`, `a_i = a' + S q̈_i`, with
+//! `a_0 = −g`.
 
 use super::check::{check_q, check_v};
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::math::{Mat6, Motion, Transform, Vec3, Vec6};
+use crate::math::{Force, Mat3, Mat6, Motion, Transform, Vec3, Vec6};
 use crate::model::Model;
 use nalgebra::DVector;
 
@@ -40,17 +41,14 @@ pub fn aba<'d>(
     check_v(model, tau, "tau")?;
     let n = model.nbodies();
     data.aba_v[0] = Motion::zero();
-    let mut reference = Vec3::zeros();
     for i in 1..n {
         joint_step(model, data, q, i);
         let (p, iv, joint) = (model.parents[i], model.idx_v[i], &model.joints[i]);
         let nv = joint.nv();
         data.x_wb[i] = data.x_wb[p] * data.x_pb[i];
-        if i == 1 {
-            reference = data.x_wb[1].translation;
-        }
-        let x =
-            Transform { rotation: data.x_wb[i].rotation, translation: data.x_wb[i].translation - reference };
+        // The body's frame turned to world axes, and its origin seen from the parent's.
+        let x = Transform { rotation: data.x_wb[i].rotation, translation: Vec3::zeros() };
+        let r = data.x_wb[i].translation - data.x_wb[p].translation;
         let vq = &v.as_slice()[iv..iv + nv];
         let mut v_j = Motion::zero();
         for (k, vk) in vq.iter().enumerate() {
@@ -58,7 +56,7 @@ pub fn aba<'d>(
             data.j_crba[iv + k] = column;
             v_j += column * *vk;
         }
-        let v_i = data.aba_v[p] + v_j;
+        let v_i = shift_motion(&data.aba_v[p], &r) + v_j;
         let mut c = v_i.cross(&v_j);
         if joint.has_bias() {
             c += x.act_motion(&joint.bias(&data.s[iv..iv + nv], vq));
@@ -97,11 +95,11 @@ pub fn aba<'d>(
             }
             // pᴬ_λ += pᴬ + Iᴬ c + U D⁻¹ (u − Uᵀ c), Iᴬ_λ += Iᴬ − U D⁻¹ Uᵀ.
             let pa_a = pa + ia * c + u * (d_inv * (u_bias - u.dot(&c)));
-            let parent = &mut done[p];
-            *parent += ia;
-            parent.ger(-d_inv, &u, &u, 1.0);
-            data.pa[p].linear += pa_a.fixed_rows::<3>(0);
-            data.pa[p].angular += pa_a.fixed_rows::<3>(3);
+            let mut ia_a = *ia;
+            ia_a.ger(-d_inv, &u, &u, 1.0);
+            let r = data.x_wb[i].translation - data.x_wb[p].translation;
+            add_shifted_inertia(&ia_a, &r, &mut done[p]);
+            add_shifted_force(&pa_a, &r, &mut data.pa[p]);
         } else {
             let mut d = Mat6::identity();
             for a in 0..nv {
@@ -131,16 +129,17 @@ pub fn aba<'d>(
                 pa_a += w * data.u_bias[iv + b];
             }
             pa_a += ia_a * c;
-            done[p] += ia_a;
-            data.pa[p].linear += pa_a.fixed_rows::<3>(0);
-            data.pa[p].angular += pa_a.fixed_rows::<3>(3);
+            let r = data.x_wb[i].translation - data.x_wb[p].translation;
+            add_shifted_inertia(&ia_a, &r, &mut done[p]);
+            add_shifted_force(&pa_a, &r, &mut data.pa[p]);
         }
     }
 
     data.aba_a[0] = Motion::new(-model.gravity, Vec3::zeros());
     for i in 1..n {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        let a_prime = data.aba_a[p] + data.c_j[i];
+        let r = data.x_wb[i].translation - data.x_wb[p].translation;
+        let a_prime = shift_motion(&data.aba_a[p], &r) + data.c_j[i];
         let a_vec = a_prime.to_vector();
         let mut a_i = a_prime;
         if nv == 1 {
@@ -161,6 +160,45 @@ pub fn aba<'d>(
         data.aba_a[i] = a_i;
     }
     Ok(&data.ddq)
+}
+
+/// A motion (velocity or spatial acceleration) about a point moved by `r` (same axes):
+/// `[v + ω × r; ω]`.
+#[inline]
+fn shift_motion(m: &Motion, r: &Vec3) -> Motion {
+    Motion { linear: m.linear + m.angular.cross(r), angular: m.angular }
+}
+
+/// `out += f` taken from a point `r` away to the parent's point (same axes): `[f; n + r × f]`.
+#[inline]
+fn add_shifted_force(f: &Vec6, r: &Vec3, out: &mut Force) {
+    let linear = Vec3::new(f[0], f[1], f[2]);
+    out.linear += linear;
+    out.angular += Vec3::new(f[3], f[4], f[5]) + r.cross(&linear);
+}
+
+/// `out += ^λX*_i Iᵃ ⁱX_λ` for a pure translation (both frames in world axes, the body's origin
+/// `r` from the parent's): for `Iᵃ = [[A, B], [Bᵀ, C]]` (A, C symmetric) and `T = [r]×`,
+/// `A_p = A`, `B_p = B − A T`, `C_p = C + T B + (T B)ᵀ − T A T`. Products with T are cross
+/// products with r (`A T = −(T A)ᵀ` as A is symmetric).
+fn add_shifted_inertia(ia: &Mat6, r: &Vec3, out: &mut Mat6) {
+    let a: Mat3 = ia.fixed_view::<3, 3>(0, 0).into_owned();
+    let b: Mat3 = ia.fixed_view::<3, 3>(0, 3).into_owned();
+    let c: Mat3 = ia.fixed_view::<3, 3>(3, 3).into_owned();
+    let cross_columns =
+        |m: &Mat3| Mat3::from_columns(&[r.cross(&m.column(0)), r.cross(&m.column(1)), r.cross(&m.column(2))]);
+    let at = -cross_columns(&a).transpose(); // A T
+    let b_p = b - at;
+    let tb = cross_columns(&b);
+    let c_p = c + tb + tb.transpose() - cross_columns(&at);
+    let mut add = |row: usize, col: usize, m: &Mat3| {
+        let mut view = out.fixed_view_mut::<3, 3>(row, col);
+        view += m;
+    };
+    add(0, 0, &a);
+    add(0, 3, &b_p);
+    add(3, 0, &b_p.transpose());
+    add(3, 3, &c_p);
 }
 
 /// Inverse of the symmetric positive definite top-left `n×n` block of `d` by Cholesky; `None`
