@@ -20,7 +20,8 @@ pub struct Data {
     pub a: Vec<Motion>,
     /// Spatial force transmitted by each body's joint, in the body frame (RNEA).
     pub f: Vec<Force>,
-    /// Joint bias `cJ` of each body's joint, in the body frame.
+    /// Bias acceleration `c = v × vJ + cJ` of each body (ABA), in world axes about the body's
+    /// origin.
     pub c_j: Vec<Motion>,
     /// Motion subspace column of each dof, in its body's frame.
     pub s: Vec<Motion>,
@@ -32,12 +33,19 @@ pub struct Data {
     /// Joint motion-subspace columns in world axes about the CRBA reference point (the first
     /// body's origin), one per velocity dof: [`crate::algorithms::crba`]'s working copy of
     /// `j_world`, kept near the bodies so that M does not lose digits far from the origin.
+    /// [`crate::algorithms::aba`] uses it for the columns in world axes about each body's own
+    /// origin.
     pub j_crba: Vec<Motion>,
-    /// Articulated-body inertia, in the body frame (ABA).
+    /// Articulated-body inertia, in world axes about the body's origin (ABA).
     pub ia: Vec<Mat6>,
-    /// Articulated bias force, in the body frame (ABA).
+    /// Articulated bias force, in world axes about the body's origin (ABA).
     pub pa: Vec<Force>,
-    /// `U = Iᴬ S` per dof (ABA).
+    /// Spatial velocity of each body, in world axes about the body's origin (ABA).
+    pub aba_v: Vec<Motion>,
+    /// Spatial acceleration of each body including the fictitious upward −g, in world axes
+    /// about the body's origin (ABA).
+    pub aba_a: Vec<Motion>,
+    /// `U = Iᴬ S` per dof, world axes about the body's origin (ABA).
     pub u: Vec<Vec6>,
     /// `D⁻¹ = (Sᵀ Iᴬ S)⁻¹` per body, top-left nv×nv block used (ABA).
     pub d_inv: Vec<Mat6>,
@@ -83,6 +91,8 @@ impl Data {
             j_crba: vec![Motion::zero(); nv],
             ia: vec![Mat6::zeros(); n],
             pa: vec![Force::zero(); n],
+            aba_v: vec![Motion::zero(); n],
+            aba_a: vec![Motion::zero(); n],
             u: vec![Vec6::zeros(); nv],
             d_inv: vec![Mat6::zeros(); n],
             u_bias: DVector::zeros(nv),

@@ -86,6 +86,8 @@ fn integrator_steps_do_not_allocate() {
         IntegratorKind::SemiImplicitEuler,
         IntegratorKind::VelocityVerlet,
         IntegratorKind::Rk4,
+        IntegratorKind::Rk6,
+        IntegratorKind::Rk8,
         IntegratorKind::DormandPrince45 { rtol: 1e-8, atol: 1e-8 },
         IntegratorKind::GraggBulirschStoer { columns: 6 },
         IntegratorKind::ImplicitEuler,

@@ -20,13 +20,15 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) -> R
 }
 
 /// Joint `i`'s transform and subspace at `q`: sets `data.x_pb[i]` and `data.s` of its dofs.
-#[inline]
+#[inline(always)]
 pub(crate) fn joint_step(model: &Model, data: &mut Data, q: &DVector<f64>, i: usize) {
     let joint = &model.joints[i];
     let (iq, iv) = (model.idx_q[i], model.idx_v[i]);
-    let x_jc =
-        joint.transform_and_subspace(&q.as_slice()[iq..iq + joint.nq()], &mut data.s[iv..iv + joint.nv()]);
-    data.x_pb[i] = model.placements[i] * x_jc;
+    data.x_pb[i] = joint.placed_transform(
+        &model.placements[i],
+        &q.as_slice()[iq..iq + joint.nq()],
+        &mut data.s[iv..iv + joint.nv()],
+    );
 }
 
 /// Pose in the world of frame `frame` (see [`Model::frames`]) from the body poses of the last

@@ -5,7 +5,7 @@ use super::implicit::ImplicitTerms;
 use crate::algorithms::aba;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::model::Model;
+use crate::model::{Joint, Model};
 use nalgebra::DVector;
 
 /// A chart at `q₀` with the buffers to evaluate the dynamics in it (allocated once).
@@ -17,6 +17,10 @@ pub struct Chart {
     v: DVector<f64>,
     tau: DVector<f64>,
     terms: ImplicitTerms,
+    /// Every joint's configuration space is a vector space (hinges, sliders, universal, hinge2):
+    /// `q₀ ⊕ Θ = q₀ + Θ` and `Θ̇ = v` exactly, so the chart needs neither the per-joint
+    /// exponential map nor dexp⁻¹.
+    euclidean: bool,
     evaluations: u64,
 }
 
@@ -31,6 +35,8 @@ impl Chart {
             v: DVector::zeros(nv),
             tau: DVector::zeros(nv),
             terms: ImplicitTerms::new(model),
+            euclidean: (1..model.nbodies())
+                .all(|i| !matches!(model.joint(i), Joint::Ball | Joint::Free | Joint::Planar)),
             evaluations: 0,
         }
     }
@@ -82,9 +88,12 @@ impl Chart {
         if v.len() != model.nv() {
             return Err(DynamicsError::DimensionMismatch { what: "v", expected: model.nv(), got: v.len() });
         }
+        self.evaluations += 1;
+        if self.terms.is_empty() {
+            return aba(model, data, q, v, tau);
+        }
         self.tau.copy_from(tau);
         self.terms.subtract_passive_forces(model, q, v, 0.0, &mut self.tau);
-        self.evaluations += 1;
         aba(model, data, q, v, &self.tau)
     }
 
@@ -98,9 +107,26 @@ impl Chart {
         dy: &mut DVector<f64>,
     ) -> Result<(), DynamicsError> {
         let nv = model.nv();
-        self.theta.copy_from(&y.rows(0, nv));
         self.v.copy_from(&y.rows(nv, nv));
-        model.integrate(&self.q0, &self.theta, 1.0, &mut self.q);
+        if self.euclidean && y.len() == 2 * self.q.len() {
+            for ((q, q0), theta) in self.q.iter_mut().zip(&self.q0).zip(y.rows(0, nv).iter()) {
+                *q = q0 + theta;
+            }
+            dy.rows_mut(0, nv).copy_from(&self.v);
+        } else {
+            self.theta.copy_from(&y.rows(0, nv));
+            model.integrate(&self.q0, &self.theta, 1.0, &mut self.q);
+            self.chart_rates(model, dy);
+        }
+        let (q, v) = (std::mem::take(&mut self.q), std::mem::take(&mut self.v));
+        let result = self.acceleration(model, data, tau, &q, &v).map(|a| dy.rows_mut(nv, nv).copy_from(a));
+        self.q = q;
+        self.v = v;
+        result
+    }
+
+    /// `dy[..nv] = dexp⁻¹₋Θ(v)` joint by joint, for Θ and v in `self.theta`, `self.v`.
+    fn chart_rates(&self, model: &Model, dy: &mut DVector<f64>) {
         for i in 1..model.nbodies() {
             let joint = model.joint(i);
             let r = model.idx_v(i)..model.idx_v(i) + joint.nv();
@@ -110,11 +136,6 @@ impl Chart {
                 &mut dy.as_mut_slice()[r],
             );
         }
-        let (q, v) = (std::mem::take(&mut self.q), std::mem::take(&mut self.v));
-        let result = self.acceleration(model, data, tau, &q, &v).map(|a| dy.rows_mut(nv, nv).copy_from(a));
-        self.q = q;
-        self.v = v;
-        result
     }
 
     /// `dy = F([0; v₀])` at the chart's centre: `Θ̇ = v₀`, `v̇ = aba(q₀, v₀, τ)`.

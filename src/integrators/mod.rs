@@ -11,8 +11,10 @@
 //! |---|---|---|---|
 //! | [`ExplicitEuler`] | 1 | 1 ABA | the baseline: energy grows |
 //! | [`SemiImplicitEuler`] | 1 | 1 ABA | symplectic for conservative forces; the world's scheme |
-//! | [`VelocityVerlet`] | 2 | 2 ABA | leapfrog, kick–drift–kick |
+//! | [`VelocityVerlet`] | 2 | 1 ABA | leapfrog, kick–drift–kick |
 //! | [`Rk4`] | 4 | 4 ABA | classical Runge–Kutta |
+//! | [`Rk6`] | 6 | 7 ABA | Butcher's sixth-order method |
+//! | [`Rk8`] | 8 | 12 ABA | DOP853's eighth-order solution, fixed step |
 //! | [`DormandPrince45`] | 5 (4 embedded) | 6 ABA per accepted step | adaptive, step-to-time |
 //! | [`GraggBulirschStoer`] | 2·columns | 1 + Σ nⱼ ABA | extrapolated midpoint, references |
 //! | [`ImplicitEuler`] | 1 | CRBA + RNEA + factorization | implicit in v for damping and springs (MuJoCo's `implicitfast`) |
@@ -31,7 +33,7 @@ pub use chart::Chart;
 pub use euler::{ExplicitEuler, SemiImplicitEuler};
 pub use extrapolation::GraggBulirschStoer;
 pub use implicit::{ImplicitEuler, ImplicitTerms};
-pub use runge_kutta::{AdaptiveStats, DormandPrince45, Rk4};
+pub use runge_kutta::{AdaptiveStats, DormandPrince45, Rk4, Rk6, Rk8};
 pub use verlet::VelocityVerlet;
 
 use crate::data::Data;
@@ -105,6 +107,10 @@ pub enum IntegratorKind {
     VelocityVerlet,
     /// [`Rk4`].
     Rk4,
+    /// [`Rk6`].
+    Rk6,
+    /// [`Rk8`].
+    Rk8,
     /// [`DormandPrince45`] with relative tolerance `rtol` and absolute tolerance `atol`.
     DormandPrince45 {
         /// Relative tolerance.
@@ -129,6 +135,8 @@ impl IntegratorKind {
             IntegratorKind::SemiImplicitEuler => Box::new(SemiImplicitEuler::new(model)),
             IntegratorKind::VelocityVerlet => Box::new(VelocityVerlet::new(model)),
             IntegratorKind::Rk4 => Box::new(Rk4::new(model)),
+            IntegratorKind::Rk6 => Box::new(Rk6::new(model)),
+            IntegratorKind::Rk8 => Box::new(Rk8::new(model)),
             IntegratorKind::DormandPrince45 { rtol, atol } => {
                 Box::new(DormandPrince45::new(model, rtol, atol))
             }
@@ -146,6 +154,8 @@ impl IntegratorKind {
             IntegratorKind::SemiImplicitEuler => "semi-implicit Euler".to_string(),
             IntegratorKind::VelocityVerlet => "velocity Verlet".to_string(),
             IntegratorKind::Rk4 => "RK4".to_string(),
+            IntegratorKind::Rk6 => "RK6".to_string(),
+            IntegratorKind::Rk8 => "RK8".to_string(),
             IntegratorKind::DormandPrince45 { rtol, .. } => format!("DOPRI45 rtol={rtol:.0e}"),
             IntegratorKind::GraggBulirschStoer { columns } => format!("GBS {columns} columns"),
             IntegratorKind::ImplicitEuler => "implicit Euler".to_string(),

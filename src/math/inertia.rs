@@ -65,14 +65,44 @@ impl SpatialInertia {
     }
 
     /// The 6×6 matrix `[[m 1, −[h]×], [[h]×, I_o]]`.
+    #[inline]
     pub fn to_matrix(&self) -> Mat6 {
         let mut out = Mat6::zeros();
-        let k = skew(&self.first_moment);
-        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&(Mat3::identity() * self.mass));
-        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-k));
-        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&k);
-        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&self.inertia_origin);
+        self.write_matrix(&mut out);
         out
+    }
+
+    /// Writes [`SpatialInertia::to_matrix`] into `out` (every entry).
+    #[inline]
+    pub fn write_matrix(&self, out: &mut Mat6) {
+        let (m, h, i) = (self.mass, &self.first_moment, &self.inertia_origin);
+        // Column-major, column by column: [m e_c; [h]× e_c] then [−[h]× e_c; I_o e_c].
+        let data = out.as_mut_slice();
+        data[..18].copy_from_slice(&[
+            m, 0.0, 0.0, 0.0, h.z, -h.y, //
+            0.0, m, 0.0, -h.z, 0.0, h.x, //
+            0.0, 0.0, m, h.y, -h.x, 0.0,
+        ]);
+        data[18..].copy_from_slice(&[
+            0.0,
+            -h.z,
+            h.y,
+            i[(0, 0)],
+            i[(1, 0)],
+            i[(2, 0)], //
+            h.z,
+            0.0,
+            -h.x,
+            i[(0, 1)],
+            i[(1, 1)],
+            i[(2, 1)], //
+            -h.y,
+            h.x,
+            0.0,
+            i[(0, 2)],
+            i[(1, 2)],
+            i[(2, 2)],
+        ]);
     }
 
     /// This inertia (given in frame B) expressed in frame A, for `x_ab` the pose of B in A:

@@ -228,6 +228,7 @@ fn smooth_suite(quick: bool) -> Vec<(IntegratorKind, Vec<f64>)> {
         return vec![
             (SemiImplicitEuler, vec![1e-2, 1e-3]),
             (Rk4, vec![1e-2, 2e-3]),
+            (Rk8, vec![4e-2]),
             (DormandPrince45 { rtol: 1e-6, atol: 1e-6 }, vec![0.04]),
             (GraggBulirschStoer { columns: 6 }, vec![0.04]),
         ];
@@ -237,8 +238,10 @@ fn smooth_suite(quick: bool) -> Vec<(IntegratorKind, Vec<f64>)> {
         (ExplicitEuler, vec![1e-3, 2e-4, 1e-4]),
         (SemiImplicitEuler, vec![2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4]),
         (ImplicitEuler, vec![1e-2, 2e-3, 1e-3, 2e-4]),
-        (VelocityVerlet, vec![4e-2, 2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4]),
-        (Rk4, vec![4e-2, 2e-2, 1e-2, 5e-3, 4e-3, 2e-3, 1e-3, 5e-4, 1e-4]),
+        (VelocityVerlet, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4]),
+        (Rk4, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3, 1e-3, 5e-4, 1e-4]),
+        (Rk6, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3]),
+        (Rk8, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3]),
         dopri(1e-3),
         dopri(1e-4),
         dopri(1e-5),
@@ -271,8 +274,16 @@ fn contact_suite(quick: bool) -> (Vec<(&'static str, Vec<SolverKind>)>, Vec<f64>
     )
 }
 
+/// `dt` in scientific notation with up to three significant digits: `1e-2`, `1.33e-2`.
 fn dt_label(dt: f64) -> String {
-    format!("{dt:.0e}").replace("e-", "e-")
+    let text = format!("{dt:.2e}");
+    match text.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        }
+        _ => text,
+    }
 }
 
 /// Runs the suite; `progress(what, fraction)` is called before each configuration.
@@ -403,9 +414,12 @@ pub fn run(
     report.mujoco = read_mujoco_points(&options.peers_dir.join("README.md"));
     report.goal = goal_check(&report.rows, &report.mujoco);
     report.notes.push(format!(
-        "build: {}; up to {} timed repeat(s) per configuration (one for runs over 0.5 s), median",
+        "build: {}; {} timed repeat(s) per configuration, more for short runs until {} s are timed (at most {}), one for runs over {} s; median",
         if cfg!(debug_assertions) { "debug (timings not representative)" } else { "release" },
-        repeats
+        repeats,
+        super::speed_error_scenes::MIN_TIMED,
+        super::speed_error_scenes::MAX_REPEATS,
+        super::speed_error_scenes::LONG_RUN
     ));
     Ok(report)
 }

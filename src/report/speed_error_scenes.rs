@@ -104,9 +104,18 @@ pub(crate) const MAX_EVALUATIONS: u64 = 1_000_000;
 /// A run that takes longer than this (s) is not repeated: its noise averages out over its steps.
 pub(crate) const LONG_RUN: f64 = 0.5;
 
-/// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme), up to
-/// `repeats` times, sampling every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the
-/// interval or the run needs more than `budget` dynamics evaluations.
+/// Short runs are repeated (beyond the requested repeats) until this much wall time (s) has
+/// been timed, up to [`MAX_REPEATS`] runs: a millisecond run timed three times on a shared
+/// machine reports whatever preemption hit it, the median of many does not.
+pub(crate) const MIN_TIMED: f64 = 0.1;
+
+/// Most timed runs of one configuration.
+pub(crate) const MAX_REPEATS: usize = 50;
+
+/// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme) `repeats`
+/// times (more for short runs, see [`MIN_TIMED`]; once for a run over [`LONG_RUN`]), sampling
+/// every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the interval or the run needs more
+/// than `budget` dynamics evaluations.
 pub(crate) fn run_smooth(
     scene: &SmoothScene,
     kind: IntegratorKind,
@@ -126,7 +135,8 @@ pub(crate) fn run_smooth(
     let mut q = Vec::with_capacity((samples + 1) * model.nq());
     let mut v = Vec::with_capacity((samples + 1) * model.nv());
     let mut steps = 0u64;
-    for _ in 0..repeats.max(1) {
+    let mut timed = 0.0;
+    while times.len() < repeats.max(1) || (timed < MIN_TIMED && times.len() < MAX_REPEATS) {
         let adaptive = matches!(kind, IntegratorKind::DormandPrince45 { .. });
         let mut dopri = match kind {
             IntegratorKind::DormandPrince45 { rtol, atol } => Some(DormandPrince45::new(model, rtol, atol)),
@@ -155,8 +165,10 @@ pub(crate) fn run_smooth(
             q.extend_from_slice(state.q.as_slice());
             v.extend_from_slice(state.v.as_slice());
         }
-        times.push(start.elapsed().as_secs_f64());
-        let long = times[times.len() - 1] > LONG_RUN;
+        let elapsed = start.elapsed().as_secs_f64();
+        times.push(elapsed);
+        timed += elapsed;
+        let long = elapsed > LONG_RUN;
         steps = match (&dopri, adaptive) {
             (Some(d), true) => d.stats().accepted,
             _ => (samples * per_sample) as u64,
