@@ -159,7 +159,7 @@ use toml::Spanned;
 /// Names of the integrators a scene may ask for (`gbsN` too): the world's velocity-level
 /// semi-implicit Euler step, or a scheme of [`crate::integrators`] for the steps without contact
 /// ([`crate::world::smooth`]).
-pub const INTEGRATORS: [&str; 7] = crate::world::INTEGRATOR_NAMES;
+pub const INTEGRATORS: [&str; 9] = crate::world::INTEGRATOR_NAMES;
 
 // ------------------------------------------------------------------------------------------------
 // Public API

@@ -49,8 +49,17 @@ use nalgebra::DVector;
 
 /// Names of the integrators a world (or a scene's `[world] integrator`) accepts, as
 /// [`parse_integrator`] reads them.
-pub const INTEGRATOR_NAMES: [&str; 7] =
-    ["semi-implicit-euler", "explicit-euler", "velocity-verlet", "rk4", "dopri45", "gbs", "implicit-euler"];
+pub const INTEGRATOR_NAMES: [&str; 9] = [
+    "semi-implicit-euler",
+    "explicit-euler",
+    "velocity-verlet",
+    "rk4",
+    "rk6",
+    "rk8",
+    "dopri45",
+    "gbs",
+    "implicit-euler",
+];
 
 /// The integrator called `name` (one of [`INTEGRATOR_NAMES`]; `dopri45` with rtol = 1e-9 and
 /// atol = 1e-12, `gbs` with 4 columns, or `gbsN` with N columns).
@@ -60,6 +69,8 @@ pub fn parse_integrator(name: &str) -> Option<IntegratorKind> {
         "explicit-euler" => IntegratorKind::ExplicitEuler,
         "velocity-verlet" => IntegratorKind::VelocityVerlet,
         "rk4" => IntegratorKind::Rk4,
+        "rk6" => IntegratorKind::Rk6,
+        "rk8" => IntegratorKind::Rk8,
         "dopri45" => IntegratorKind::DormandPrince45 { rtol: 1e-9, atol: 1e-12 },
         "gbs" => IntegratorKind::GraggBulirschStoer { columns: 4 },
         "implicit-euler" => IntegratorKind::ImplicitEuler,
@@ -80,6 +91,8 @@ pub fn integrator_name(kind: &IntegratorKind) -> &'static str {
         IntegratorKind::SemiImplicitEuler => "semi-implicit-euler",
         IntegratorKind::VelocityVerlet => "velocity-verlet",
         IntegratorKind::Rk4 => "rk4",
+        IntegratorKind::Rk6 => "rk6",
+        IntegratorKind::Rk8 => "rk8",
         IntegratorKind::DormandPrince45 { .. } => "dopri45",
         IntegratorKind::GraggBulirschStoer { .. } => "gbs",
         IntegratorKind::ImplicitEuler => "implicit-euler",
