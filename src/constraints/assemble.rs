@@ -313,7 +313,7 @@ impl<'a> TreeFactor<'a> {
         (lo, last + 1)
     }
 
-    /// x ← L⁻¹ D^{-1/2} x on a block's slice (the inverse map of [`Self::scale_row`]'s, so
+    /// x ← L⁻¹ D^{-1/2} x on a block's slice (the inverse map of the row scaling W = J L⁻¹ D^{-1/2}, so
     /// that M⁻¹Jᵀλ = L⁻¹ D^{-1/2} Wᵀλ).
     pub fn unscale_solve(&self, first_dof: usize, x: &mut [f64]) {
         let (h, parent) = (self.factor, self.dof_parent);

@@ -225,113 +225,64 @@ const RK8: Tableau = Tableau {
     ],
 };
 
-/// Classical fourth-order Runge–Kutta in the chart of each step. Order 4, 4 ABA per step.
-#[derive(Clone, Debug)]
-pub struct Rk4 {
-    stages: Stages,
+/// A fixed-step explicit Runge–Kutta method given by its tableau: the type, its constructor and
+/// its [`Integrator`] implementation (`tableau_step` does the work).
+macro_rules! fixed_step_runge_kutta {
+    ($(#[$doc:meta])* $name:ident, $label:literal, order $order:literal, $tableau:ident, stages $stages:literal) => {
+        $(#[$doc])*
+        #[derive(Clone, Debug)]
+        pub struct $name {
+            stages: Stages,
+        }
+
+        impl $name {
+            /// Buffers for `model`.
+            pub fn new(model: &Model) -> Self {
+                Self { stages: Stages::new(model, $stages) }
+            }
+        }
+
+        impl Integrator for $name {
+            fn name(&self) -> &'static str {
+                $label
+            }
+            fn order(&self) -> u32 {
+                $order
+            }
+            fn step(
+                &mut self,
+                model: &Model,
+                data: &mut Data,
+                state: &mut State,
+                tau: &DVector<f64>,
+                h: f64,
+            ) -> Result<(), IntegratorError> {
+                tableau_step(&mut self.stages, &$tableau, model, data, state, tau, h)
+            }
+            fn evaluations(&self) -> u64 {
+                self.stages.chart.evaluations()
+            }
+        }
+    };
 }
 
-impl Rk4 {
-    /// Buffers for `model`.
-    pub fn new(model: &Model) -> Self {
-        Self { stages: Stages::new(model, 4) }
-    }
-}
+fixed_step_runge_kutta!(
+    /// Classical fourth-order Runge–Kutta in the chart of each step. Order 4, 4 ABA per step.
+    Rk4, "rk4", order 4, RK4, stages 4
+);
 
-impl Integrator for Rk4 {
-    fn name(&self) -> &'static str {
-        "rk4"
-    }
-    fn order(&self) -> u32 {
-        4
-    }
-    fn step(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        state: &mut State,
-        tau: &DVector<f64>,
-        h: f64,
-    ) -> Result<(), IntegratorError> {
-        tableau_step(&mut self.stages, &RK4, model, data, state, tau, h)
-    }
-    fn evaluations(&self) -> u64 {
-        self.stages.chart.evaluations()
-    }
-}
+fixed_step_runge_kutta!(
+    /// Butcher's sixth-order Runge–Kutta (7 stages) in the chart of each step. Order 6, 7 ABA per
+    /// step: at the same cost it reaches errors RK4 needs about twice the work for, once the step
+    /// resolves the motion.
+    Rk6, "rk6", order 6, RK6, stages 7
+);
 
-/// Butcher's sixth-order Runge–Kutta (7 stages) in the chart of each step. Order 6, 7 ABA per
-/// step: at the same cost it reaches errors RK4 needs about twice the work for, once the step
-/// resolves the motion.
-#[derive(Clone, Debug)]
-pub struct Rk6 {
-    stages: Stages,
-}
-
-impl Rk6 {
-    /// Buffers for `model`.
-    pub fn new(model: &Model) -> Self {
-        Self { stages: Stages::new(model, 7) }
-    }
-}
-
-impl Integrator for Rk6 {
-    fn name(&self) -> &'static str {
-        "rk6"
-    }
-    fn order(&self) -> u32 {
-        6
-    }
-    fn step(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        state: &mut State,
-        tau: &DVector<f64>,
-        h: f64,
-    ) -> Result<(), IntegratorError> {
-        tableau_step(&mut self.stages, &RK6, model, data, state, tau, h)
-    }
-    fn evaluations(&self) -> u64 {
-        self.stages.chart.evaluations()
-    }
-}
-
-/// The eighth-order Dormand–Prince method (DOP853's propagated solution, 12 stages) with a
-/// fixed step, in the chart of each step. Order 8, 12 ABA per step.
-#[derive(Clone, Debug)]
-pub struct Rk8 {
-    stages: Stages,
-}
-
-impl Rk8 {
-    /// Buffers for `model`.
-    pub fn new(model: &Model) -> Self {
-        Self { stages: Stages::new(model, 12) }
-    }
-}
-
-impl Integrator for Rk8 {
-    fn name(&self) -> &'static str {
-        "rk8"
-    }
-    fn order(&self) -> u32 {
-        8
-    }
-    fn step(
-        &mut self,
-        model: &Model,
-        data: &mut Data,
-        state: &mut State,
-        tau: &DVector<f64>,
-        h: f64,
-    ) -> Result<(), IntegratorError> {
-        tableau_step(&mut self.stages, &RK8, model, data, state, tau, h)
-    }
-    fn evaluations(&self) -> u64 {
-        self.stages.chart.evaluations()
-    }
-}
+fixed_step_runge_kutta!(
+    /// The eighth-order Dormand–Prince method (DOP853's propagated solution, 12 stages) with a
+    /// fixed step, in the chart of each step. Order 8, 12 ABA per step.
+    Rk8, "rk8", order 8, RK8, stages 12
+);
 
 /// Dormand–Prince 5(4) coefficients (Hairer, Nørsett & Wanner, Table II.5.2).
 const DP_A: [&[f64]; 6] = [
