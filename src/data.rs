@@ -64,6 +64,9 @@ pub struct Data {
     pub mass_matrix: DMatrix<f64>,
     /// Tree-sparse `Lᵀ D L` factor of `M` (unit L below the diagonal, D on it).
     pub mass_matrix_factor: DMatrix<f64>,
+    /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
+    /// row scaling of the constraint assembly needs it for every row).
+    pub factor_inv_sqrt_d: DVector<f64>,
     /// A 6×nv frame Jacobian, output of [`crate::algorithms::frame_jacobian`].
     pub jacobian: DMatrix<f64>,
     /// Centre of mass in the world (m).
@@ -102,6 +105,7 @@ impl Data {
             ddq: DVector::zeros(nv),
             mass_matrix: DMatrix::zeros(nv, nv),
             mass_matrix_factor: DMatrix::zeros(nv, nv),
+            factor_inv_sqrt_d: DVector::zeros(nv),
             jacobian: DMatrix::zeros(6, nv),
             com: Vec3::zeros(),
             kinetic_energy: 0.0,

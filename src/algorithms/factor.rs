@@ -37,6 +37,9 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
             i = lambda[i];
         }
     }
+    for k in 0..model.nv() {
+        data.factor_inv_sqrt_d[k] = 1.0 / data.mass_matrix_factor[(k, k)].sqrt();
+    }
     Ok(())
 }
 

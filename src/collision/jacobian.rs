@@ -11,6 +11,43 @@ use crate::math::{Mat3, Vec3};
 use crate::model::{Model, NO_DOF};
 use nalgebra::DMatrix;
 
+/// A Jacobian row being written: hands out the dense run of entries that holds a column, so
+/// that a walk along a body's path to the root writes without a lookup per entry. A dense row
+/// (`[f64]` of nv entries) is one run; a [`crate::constraints::RowMut`] has one per block.
+pub trait JacobianRow {
+    /// The run of entries holding column `col` (created zeroed if the row has none yet) and the
+    /// column of its first entry.
+    fn segment_mut(&mut self, col: usize) -> (&mut [f64], usize);
+}
+
+impl JacobianRow for [f64] {
+    fn segment_mut(&mut self, _col: usize) -> (&mut [f64], usize) {
+        (self, 0)
+    }
+}
+
+/// `row[col + k] += value(k)` for every dof k on the path from `last` to the root.
+fn add_along_path(
+    model: &Model,
+    last: usize,
+    row: &mut (impl JacobianRow + ?Sized),
+    col: usize,
+    mut value: impl FnMut(usize) -> f64,
+) {
+    let mut k = last;
+    if k == NO_DOF {
+        return;
+    }
+    let (mut segment, mut first) = row.segment_mut(col + k);
+    while k != NO_DOF {
+        if col + k < first || col + k - first >= segment.len() {
+            (segment, first) = row.segment_mut(col + k);
+        }
+        segment[col + k - first] += value(k);
+        k = model.dof_parent[k];
+    }
+}
+
 /// Two unit tangents completing the unit normal `n` to a right-handed orthonormal frame
 /// (n, t1, t2), continuous except where n_z changes sign (Duff et al., "Building an orthonormal
 /// basis, revisited", JCGT 2017).
@@ -68,15 +105,13 @@ pub fn add_point_direction_row(
     point: &Vec3,
     direction: &Vec3,
     sign: f64,
-    row: &mut [f64],
+    row: &mut (impl JacobianRow + ?Sized),
     col: usize,
 ) {
-    let mut k = last_dof_of(model, body);
-    while k != NO_DOF {
+    add_along_path(model, last_dof_of(model, body), row, col, |k| {
         let column = &data.j_world[k];
-        row[col + k] += sign * direction.dot(&(column.linear + column.angular.cross(point)));
-        k = model.dof_parent[k];
-    }
+        sign * direction.dot(&(column.linear + column.angular.cross(point)))
+    });
 }
 
 /// Adds `sign · dᵀ J_ω` to `row[col..col + nv]`: the rate of body `body`'s angular velocity about
@@ -87,14 +122,12 @@ pub fn add_angular_direction_row(
     body: usize,
     direction: &Vec3,
     sign: f64,
-    row: &mut [f64],
+    row: &mut (impl JacobianRow + ?Sized),
     col: usize,
 ) {
-    let mut k = last_dof_of(model, body);
-    while k != NO_DOF {
-        row[col + k] += sign * direction.dot(&data.j_world[k].angular);
-        k = model.dof_parent[k];
-    }
+    add_along_path(model, last_dof_of(model, body), row, col, |k| {
+        sign * direction.dot(&data.j_world[k].angular)
+    });
 }
 
 /// Writes the 3×nv contact Jacobian of `contact` (rows: normal, tangent 1, tangent 2; see

@@ -44,7 +44,7 @@ mod world;
 
 pub use jacobian::{
     add_angular_direction_row, add_point_direction_row, add_point_jacobian, contact_frame, contact_jacobian,
-    tangents,
+    tangents, JacobianRow,
 };
 pub use mesh::{MeshData, MeshOptions, MissingMeshPolicy};
 pub use reduce::MAX_POINTS_PER_PAIR;

@@ -5,14 +5,32 @@
 use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin, RowSparsity};
 use crate::data::Data;
 use crate::model::{Model, NO_DOF};
+use crate::solvers::SolverError;
 use nalgebra::{DMatrix, DVector};
+use std::ops::{Index, IndexMut};
 
 /// Collects constraint rows (Jacobian row, law, target velocity, softness) for one step.
 /// Buffers are kept between steps.
+///
+/// The velocity columns are split into blocks (a multibody, or one root subtree of one; one
+/// block of all columns by default, see [`ProblemBuilder::with_blocks`]), and a row stores one
+/// dense segment per block it touches: a contact row of a world with thousands of velocity
+/// coordinates costs the width of its one or two bodies' blocks, not the world's width.
 #[derive(Clone, Debug)]
 pub struct ProblemBuilder {
     nv: usize,
-    rows: Vec<f64>,
+    /// (first column, width) of each block; they tile `0..nv`.
+    blocks: Vec<(usize, usize)>,
+    /// The block of each column.
+    block_of_col: Vec<u32>,
+    /// First segment of each row: row i's are `row_segments[i]..row_segments[i + 1]` (the last
+    /// row's run to the end).
+    row_segments: Vec<usize>,
+    /// Block of each segment.
+    segment_block: Vec<usize>,
+    /// Start of each segment's values (its block's width of them) in `values`.
+    segment_start: Vec<usize>,
+    values: Vec<f64>,
     targets: Vec<f64>,
     softness: Vec<f64>,
     laws: Vec<RowLaw>,
@@ -22,12 +40,77 @@ pub struct ProblemBuilder {
     pub friction: FrictionModel,
 }
 
+/// The Jacobian row being written ([`ProblemBuilder::push_row`]), indexed by velocity column
+/// like a dense row of `nv` entries; entries never written read as zero. Writing to a column
+/// of a block the row does not touch yet adds a zeroed segment for that block.
+#[derive(Debug)]
+pub struct RowMut<'a> {
+    builder: &'a mut ProblemBuilder,
+}
+
+impl RowMut<'_> {
+    fn find(&self, col: usize) -> Option<usize> {
+        let b = &*self.builder;
+        let block = b.block_of_col[col] as usize;
+        let first = *b.row_segments.last().expect("a row is open");
+        (first..b.segment_block.len())
+            .find(|&s| b.segment_block[s] == block)
+            .map(|s| b.segment_start[s] + col - b.blocks[block].0)
+    }
+}
+
+impl Index<usize> for RowMut<'_> {
+    type Output = f64;
+
+    fn index(&self, col: usize) -> &f64 {
+        assert!(col < self.builder.nv, "column {col} out of range ({} columns)", self.builder.nv);
+        match self.find(col) {
+            Some(k) => &self.builder.values[k],
+            None => &0.0,
+        }
+    }
+}
+
+impl IndexMut<usize> for RowMut<'_> {
+    fn index_mut(&mut self, col: usize) -> &mut f64 {
+        assert!(col < self.builder.nv, "column {col} out of range ({} columns)", self.builder.nv);
+        let (segment, first) = crate::collision::JacobianRow::segment_mut(self, col);
+        &mut segment[col - first]
+    }
+}
+
+impl crate::collision::JacobianRow for RowMut<'_> {
+    fn segment_mut(&mut self, col: usize) -> (&mut [f64], usize) {
+        let b = &mut *self.builder;
+        let block = b.block_of_col[col] as usize;
+        let (first, width) = b.blocks[block];
+        let open = *b.row_segments.last().expect("a row is open");
+        let start = match (open..b.segment_block.len()).find(|&s| b.segment_block[s] == block) {
+            Some(s) => b.segment_start[s],
+            None => {
+                let start = b.values.len();
+                b.segment_block.push(block);
+                b.segment_start.push(start);
+                b.values.resize(start + width, 0.0);
+                start
+            }
+        };
+        (&mut b.values[start..start + width], first)
+    }
+}
+
 impl ProblemBuilder {
-    /// An empty builder for a system of `nv` velocity coordinates.
+    /// An empty builder for a system of `nv` velocity coordinates, all in one block.
     pub fn new(nv: usize, friction: FrictionModel) -> Self {
+        let blocks = if nv > 0 { vec![(0, nv)] } else { Vec::new() };
         Self {
             nv,
-            rows: Vec::new(),
+            blocks,
+            block_of_col: vec![0; nv],
+            row_segments: Vec::new(),
+            segment_block: Vec::new(),
+            segment_start: Vec::new(),
+            values: Vec::new(),
             targets: Vec::new(),
             softness: Vec::new(),
             laws: Vec::new(),
@@ -37,9 +120,46 @@ impl ProblemBuilder {
         }
     }
 
+    /// An empty builder whose columns are split into `blocks` ((first column, width) each, in
+    /// order, tiling `0..nv` with no gap or overlap) such that M is block-diagonal over them:
+    /// rows store one segment per block they touch, and [`ProblemBuilder::build_into_blocks`]
+    /// factors per block.
+    pub fn with_blocks(
+        nv: usize,
+        blocks: &[(usize, usize)],
+        friction: FrictionModel,
+    ) -> Result<Self, SolverError> {
+        let mut next = 0;
+        let mut block_of_col = Vec::with_capacity(nv);
+        for (b, &(first, width)) in blocks.iter().enumerate() {
+            if first != next || width == 0 {
+                return Err(SolverError::InvalidProblem(format!(
+                    "velocity blocks {blocks:?} do not tile the {nv} velocity columns (block {b})"
+                )));
+            }
+            block_of_col.resize(first + width, b as u32);
+            next = first + width;
+        }
+        if next != nv {
+            return Err(SolverError::InvalidProblem(format!(
+                "velocity blocks {blocks:?} cover {next} of the {nv} velocity columns"
+            )));
+        }
+        let mut builder = Self::new(0, friction);
+        builder.nv = nv;
+        builder.blocks = blocks.to_vec();
+        builder.block_of_col = block_of_col;
+        Ok(builder)
+    }
+
     /// Number of velocity coordinates.
     pub fn nv(&self) -> usize {
         self.nv
+    }
+
+    /// The velocity blocks ((first column, width) each).
+    pub fn blocks(&self) -> &[(usize, usize)] {
+        &self.blocks
     }
 
     /// Number of rows so far.
@@ -54,7 +174,10 @@ impl ProblemBuilder {
 
     /// Removes every row (keeps the buffers).
     pub fn clear(&mut self) {
-        self.rows.clear();
+        self.row_segments.clear();
+        self.segment_block.clear();
+        self.segment_start.clear();
+        self.values.clear();
         self.targets.clear();
         self.softness.clear();
         self.laws.clear();
@@ -62,23 +185,34 @@ impl ProblemBuilder {
         self.origins.clear();
     }
 
-    /// Appends a row and returns its index and its Jacobian row (zeroed, nv entries) to fill.
-    /// `target` is the row's target velocity u*, `softness` its regularisation R_ii.
+    /// Appends a row and returns its index and its Jacobian row (all zero) to fill, indexed by
+    /// velocity column. `target` is the row's target velocity u*, `softness` its
+    /// regularisation R_ii.
     pub fn push_row(
         &mut self,
         law: RowLaw,
         target: f64,
         softness: f64,
         origin: RowOrigin,
-    ) -> (usize, &mut [f64]) {
+    ) -> (usize, RowMut<'_>) {
         let index = self.laws.len();
         self.laws.push(law);
         self.targets.push(target);
         self.softness.push(softness);
         self.origins.push(origin);
-        let start = self.rows.len();
-        self.rows.resize(start + self.nv, 0.0);
-        (index, &mut self.rows[start..])
+        self.row_segments.push(self.segment_block.len());
+        (index, RowMut { builder: self })
+    }
+
+    /// The segments of row `i`: (block, first column, values over the block's width).
+    fn segments(&self, i: usize) -> impl Iterator<Item = (usize, usize, &[f64])> + '_ {
+        let end = self.row_segments.get(i + 1).copied().unwrap_or(self.segment_block.len());
+        (self.row_segments[i]..end).map(move |s| {
+            let block = self.segment_block[s];
+            let (first, width) = self.blocks[block];
+            let start = self.segment_start[s];
+            (block, first, &self.values[start..start + width])
+        })
     }
 
     /// Registers a contact block whose normal row is `normal` (the two friction rows follow it).
@@ -102,20 +236,41 @@ impl ProblemBuilder {
         self.targets[i]
     }
 
-    /// The Jacobian row `i`.
-    pub fn row(&self, i: usize) -> &[f64] {
-        &self.rows[i * self.nv..(i + 1) * self.nv]
+    /// J_i · v for row `i` and a velocity `v` of `nv` entries (e.g. m/s for a contact normal).
+    pub fn row_dot(&self, i: usize, v: &[f64]) -> f64 {
+        self.segments(i)
+            .map(|(_, first, values)| {
+                values.iter().zip(&v[first..first + values.len()]).map(|(a, b)| a * b).sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// Writes the dense Jacobian row `i` (`nv` entries) into `out`.
+    pub fn row_into(&self, i: usize, out: &mut [f64]) {
+        out[..self.nv].fill(0.0);
+        for (_, first, values) in self.segments(i) {
+            for (o, v) in out[first..first + values.len()].iter_mut().zip(values) {
+                *o += v;
+            }
+        }
+    }
+
+    /// The dense Jacobian row `i` (`nv` entries; allocates, for inspection and tests).
+    pub fn row(&self, i: usize) -> Vec<f64> {
+        let mut out = vec![0.0; self.nv];
+        self.row_into(i, &mut out);
+        out
     }
 
     /// Builds the problem into `problem` for one multibody whose mass matrix is factored in
-    /// `factor` (one velocity block), `v_free` its free velocity.
+    /// `factor`, `v_free` its free velocity.
     pub fn build_into(&self, v_free: &DVector<f64>, factor: TreeFactor<'_>, problem: &mut ConstraintProblem) {
-        let blocks = [(0, self.nv)];
-        self.build_into_blocks(v_free, &blocks, |_| Some((factor, 0)), true, problem);
+        let blocks = &self.blocks;
+        self.build_into_blocks(v_free, |b| Some((factor, blocks[b].0)), true, problem);
     }
 
-    /// Builds the problem into `problem` for a block-diagonal M: `blocks[b]` = (first column,
-    /// width) of block b (a multibody, or one root subtree of a multibody), and `factor_of(b)`
+    /// Builds the problem into `problem` for a block-diagonal M over the builder's blocks
+    /// ([`ProblemBuilder::with_blocks`]: a multibody, or one root subtree of one): `factor_of(b)`
     /// gives the factor of the multibody holding block b with the index of the block's first
     /// dof in that multibody's numbering (None: the block cannot move, M⁻¹ = 0 there). Rows
     /// touch few blocks, so M⁻¹Jᵀ and A = J M⁻¹Jᵀ are computed block by block, and the block
@@ -132,12 +287,11 @@ impl ProblemBuilder {
     pub fn build_into_blocks<'f>(
         &self,
         v_free: &DVector<f64>,
-        blocks: &[(usize, usize)],
         factor_of: impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
         dense: bool,
         problem: &mut ConstraintProblem,
     ) {
-        let (n, nv) = (self.len(), self.nv);
+        let (n, nv, blocks) = (self.len(), self.nv, &self.blocks[..]);
         let (jn, jv) = if dense { (n, nv) } else { (n, 0) };
         if problem.jacobian.shape() != (jn, jv) {
             problem.jacobian = DMatrix::zeros(jn, jv);
@@ -158,12 +312,15 @@ impl ProblemBuilder {
         sp.segment_start.clear();
         sp.segment_span.clear();
         sp.w_values.clear();
+        sp.row_norm2.clear();
+        sp.runs.clear();
+        sp.run_start.clear();
+        sp.run_start.push(0);
         sp.row_start.push(0);
         for i in 0..n {
-            let row = self.row(i);
-            for (b, &(col, width)) in blocks.iter().enumerate() {
-                let segment = &row[col..col + width];
-                // A branch-free OR over the bits (±0 ignored) vectorizes; most blocks are zero.
+            let mut norm2 = 0.0;
+            for (b, _, segment) in self.segments(i) {
+                // A branch-free OR over the bits (±0 ignored) vectorizes.
                 if segment.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) == 0 {
                     continue;
                 }
@@ -180,7 +337,14 @@ impl ProblemBuilder {
                     }
                 };
                 sp.segment_span.push(span);
+                push_runs(&mut sp.runs, &sp.w_values, blocks[b].0, start, span);
+                norm2 += dot(
+                    &sp.w_values[start + span.0..start + span.1],
+                    &sp.w_values[start + span.0..start + span.1],
+                );
             }
+            sp.row_norm2.push(norm2);
+            sp.run_start.push(sp.runs.len());
             sp.row_start.push(sp.blocks_of_row.len());
         }
         // Rows of each block, by counting sort (rows stay in increasing order).
@@ -216,7 +380,11 @@ impl ProblemBuilder {
         if dense {
             problem.minv_jt.fill(0.0);
             for i in 0..n {
-                problem.jacobian.row_mut(i).copy_from_slice(self.row(i));
+                for (_, first, values) in self.segments(i) {
+                    for (k, v) in values.iter().enumerate() {
+                        problem.jacobian[(i, first + k)] = *v;
+                    }
+                }
                 let sp = &problem.sparsity;
                 for e in sp.row_start[i]..sp.row_start[i + 1] {
                     let (col, width) = sp.blocks[sp.blocks_of_row[e]];
@@ -232,7 +400,7 @@ impl ProblemBuilder {
         }
         // A = W Wᵀ, unless the stepping path is better off matrix-free: n² entries against the
         // spans of W (many rows on small bodies, where a sweep over W is cheaper than over A).
-        let span_total: usize = problem.sparsity.segment_span.iter().map(|(lo, hi)| hi - lo).sum();
+        let span_total: usize = problem.sparsity.runs.iter().map(|run| run.2).sum();
         if dense || 2 * span_total >= n * n {
             if problem.delassus.shape() != (n, n) {
                 problem.delassus = DMatrix::zeros(n, n);
@@ -242,17 +410,7 @@ impl ProblemBuilder {
             problem.delassus = DMatrix::zeros(0, 0);
         }
         for i in 0..n {
-            let row = self.row(i);
-            let mut b = 0.0;
-            for &blk in problem.sparsity.row_blocks(i) {
-                let (col, width) = blocks[blk];
-                b += row[col..col + width]
-                    .iter()
-                    .zip(&v_free.as_slice()[col..col + width])
-                    .map(|(p, q)| p * q)
-                    .sum::<f64>();
-            }
-            problem.bias[i] = b - self.targets[i];
+            problem.bias[i] = self.row_dot(i, v_free.as_slice()) - self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }
@@ -280,13 +438,18 @@ pub fn assemble_single(
 #[derive(Clone, Copy, Debug)]
 pub struct TreeFactor<'a> {
     factor: &'a DMatrix<f64>,
+    inv_sqrt_d: &'a [f64],
     dof_parent: &'a [usize],
 }
 
 impl<'a> TreeFactor<'a> {
     /// The factor held in `data` (`data.mass_matrix_factor` must be current).
     pub fn new(model: &'a Model, data: &'a Data) -> Self {
-        Self { factor: &data.mass_matrix_factor, dof_parent: &model.dof_parent }
+        Self {
+            factor: &data.mass_matrix_factor,
+            inv_sqrt_d: data.factor_inv_sqrt_d.as_slice(),
+            dof_parent: &model.dof_parent,
+        }
     }
 
     /// For one row segment J (on the dofs `first_dof..first_dof + w.len()` of a block that is a
@@ -307,8 +470,8 @@ impl<'a> TreeFactor<'a> {
             }
         }
         let Some(lo) = w[..=last].iter().position(|x| *x != 0.0) else { return (0, 0) };
-        for k in lo..=last {
-            w[k] /= h[(first_dof + k, first_dof + k)].sqrt();
+        for (w, s) in w[lo..=last].iter_mut().zip(&self.inv_sqrt_d[first_dof + lo..]) {
+            *w *= s;
         }
         (lo, last + 1)
     }
@@ -321,7 +484,7 @@ impl<'a> TreeFactor<'a> {
         // Entries below lo stay zero: no dof there has an ancestor at or above lo.
         for k in lo..x.len() {
             let row = first_dof + k;
-            let mut xk = x[k] / h[(row, row)].sqrt();
+            let mut xk = x[k] * self.inv_sqrt_d[row];
             let mut j = parent[row];
             while j != NO_DOF {
                 xk -= h[(row, j)] * x[j - first_dof];
@@ -329,6 +492,39 @@ impl<'a> TreeFactor<'a> {
             }
             x[k] = xk;
         }
+    }
+}
+
+/// Appends the runs of non-zero entries of one row segment of W (values at `w[start..]`, the
+/// block's first column `col`, non-zero only within `span`). Gaps of fewer than four zeros are
+/// kept inside a run: skipping them would cost more in loop overhead than the products.
+fn push_runs(
+    runs: &mut Vec<(usize, usize, usize)>,
+    w: &[f64],
+    col: usize,
+    start: usize,
+    span: (usize, usize),
+) {
+    const MIN_GAP: usize = 4;
+    let segment = &w[start..start + span.1];
+    let mut k = span.0;
+    while k < span.1 {
+        if segment[k] == 0.0 {
+            k += 1;
+            continue;
+        }
+        let (first, mut end, mut zeros) = (k, k + 1, 0);
+        k += 1;
+        while k < span.1 && zeros < MIN_GAP {
+            if segment[k] == 0.0 {
+                zeros += 1;
+            } else {
+                zeros = 0;
+                end = k + 1;
+            }
+            k += 1;
+        }
+        runs.push((col + first, start + first, end - first));
     }
 }
 

@@ -122,17 +122,17 @@ pub fn add_contact_rows_with<'a>(
                 RowLaw::Friction { contact: builder.contact_count() }
             };
             let softness = if r == 0 { p.cfm / h } else { 0.0 };
-            let (_, row) = builder.push_row(law, 0.0, softness, origin);
+            let (_, mut row) = builder.push_row(law, 0.0, softness, origin);
             for (side, point, sign) in
                 [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
             {
                 if let Attachment::Body { multibody, body } = side {
                     let (model, data, col) = system(multibody);
-                    add_point_direction_row(model, data, body, &point, direction, sign, row, col);
+                    add_point_direction_row(model, data, body, &point, direction, sign, &mut row, col);
                 }
             }
         }
-        let approach = builder.row(normal_row).iter().zip(v.iter()).map(|(j, v)| j * v).sum::<f64>();
+        let approach = builder.row_dot(normal_row, v.as_slice());
         let target = p.target_normal_velocity(contact.distance, approach, h);
         builder.set_target(normal_row, target);
         builder.push_contact_block(ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) });

@@ -69,7 +69,7 @@ pub fn add_joint_limit_rows(
                 }
                 let approach = sign * v[vi];
                 let target = limit_target(distance, approach, h, p);
-                let (_, row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
+                let (_, mut row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
                 row[col + vi] = sign;
             }
         }
@@ -102,7 +102,7 @@ fn add_ball_limit_rows(
         }
         let approach = direction.dot(&omega);
         let target = limit_target(distance, approach, h, p);
-        let (_, row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
+        let (_, mut row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
         for k in 0..3 {
             row[col + iv + k] = direction[k];
         }
@@ -130,7 +130,7 @@ pub fn add_motor_row(
     h: f64,
 ) {
     let bound = max_force.abs() * h;
-    let (_, row) = builder.push_row(
+    let (_, mut row) = builder.push_row(
         RowLaw::Bounded { lo: -bound, hi: bound },
         target_velocity,
         0.0,
@@ -145,7 +145,7 @@ pub fn add_joint_friction_rows(builder: &mut ProblemBuilder, model: &Model, col:
     for (k, &f) in model.friction().iter().enumerate() {
         if f > 0.0 {
             let bound = f * h;
-            let (_, row) = builder.push_row(
+            let (_, mut row) = builder.push_row(
                 RowLaw::Bounded { lo: -bound, hi: bound },
                 0.0,
                 0.0,

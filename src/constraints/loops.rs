@@ -94,9 +94,9 @@ pub fn add_loop_closure_rows_between(
     let origin = RowOrigin::Loop(index);
     let linear = |builder: &mut ProblemBuilder, d: Vec3, point_a: Vec3, point_b: Vec3| {
         let error = d.dot(&(p_a - p_b));
-        let (_, row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
-        add_point_direction_row(model_a, data_a, c.body_a, &point_a, &d, 1.0, row, col_a);
-        add_point_direction_row(model_b, data_b, c.body_b, &point_b, &d, -1.0, row, col_b);
+        let (_, mut row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
+        add_point_direction_row(model_a, data_a, c.body_a, &point_a, &d, 1.0, &mut row, col_a);
+        add_point_direction_row(model_b, data_b, c.body_b, &point_b, &d, -1.0, &mut row, col_b);
     };
     let axes = [Vec3::x(), Vec3::y(), Vec3::z()];
     match c.kind {
@@ -113,9 +113,9 @@ pub fn add_loop_closure_rows_between(
         }
     }
     let angular = |builder: &mut ProblemBuilder, d: Vec3, error: f64| {
-        let (_, row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
-        add_angular_direction_row(model_a, data_a, c.body_a, &d, 1.0, row, col_a);
-        add_angular_direction_row(model_b, data_b, c.body_b, &d, -1.0, row, col_b);
+        let (_, mut row) = builder.push_row(RowLaw::Bilateral, -c.erp * error / h, 0.0, origin);
+        add_angular_direction_row(model_a, data_a, c.body_a, &d, 1.0, &mut row, col_a);
+        add_angular_direction_row(model_b, data_b, c.body_b, &d, -1.0, &mut row, col_b);
     };
     match c.kind {
         LoopKind::Ball => {}
@@ -282,7 +282,7 @@ mod tests {
         compute_joint_jacobians(model, data, q).unwrap();
         let mut builder = ProblemBuilder::new(model.nv(), FrictionModel::Cone);
         add_loop_closure_rows(&mut builder, model, data, 0, c, 0, 1.0);
-        (0..builder.len()).map(|i| builder.row(i).iter().zip(v.iter()).map(|(a, b)| a * b).sum()).collect()
+        (0..builder.len()).map(|i| builder.row_dot(i, v.as_slice())).collect()
     }
 
     #[test]

@@ -18,7 +18,7 @@ mod contact;
 mod joints;
 mod loops;
 
-pub use assemble::{assemble_single, ProblemBuilder, TreeFactor};
+pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters};
 pub use joints::{add_joint_friction_rows, add_joint_limit_rows, add_motor_row, JointLimitParameters};
 pub use loops::{
@@ -168,6 +168,16 @@ pub struct RowSparsity {
     pub segment_of_block_row: Vec<usize>,
     /// For each entry of `rows_of_block`, the span of W of that row's segment on that block.
     pub span_of_block_row: Vec<(usize, usize)>,
+    /// ‖W_i‖² = A_ii per row (1/kg or 1/(kg·m²)), the diagonal every solver and the residuals
+    /// need; empty when the problem was not built from segments.
+    pub row_norm2: Vec<f64>,
+    /// Runs of non-zero entries of W's rows: (first column in the stacked velocities, offset in
+    /// `w_values`, length). A row of W is non-zero only on its bodies' paths to the root, which
+    /// in a branched tree (a ragdoll's foot: pelvis, hip, knee, ankle) is a few runs of a much
+    /// wider span; row i's runs are `runs[run_start[i]..run_start[i + 1]]`.
+    pub runs: Vec<(usize, usize, usize)>,
+    /// Offsets into `runs`, one per row plus one.
+    pub run_start: Vec<usize>,
 }
 
 impl RowSparsity {
@@ -179,14 +189,12 @@ impl RowSparsity {
     pub fn row_blocks(&self, i: usize) -> &[usize] {
         &self.blocks_of_row[self.row_start[i]..self.row_start[i + 1]]
     }
-    /// The non-zero spans of row `i` of W: (first column in the stacked velocities, W's entries
-    /// from there) per touched block. (A λ)_i = Σ W_i · (Wᵀλ) over them.
+    /// The non-zero runs of row `i` of W: (first column in the stacked velocities, W's entries
+    /// from there). Outside them row i of W is zero, so (A λ)_i = Σ W_i · (Wᵀλ) over them.
     pub fn row_spans(&self, i: usize) -> impl Iterator<Item = (usize, &[f64])> + '_ {
-        (self.row_start[i]..self.row_start[i + 1]).map(move |e| {
-            let (col, _) = self.blocks[self.blocks_of_row[e]];
-            let (start, (lo, hi)) = (self.segment_start[e], self.segment_span[e]);
-            (col + lo, &self.w_values[start + lo..start + hi])
-        })
+        self.runs[self.run_start[i]..self.run_start[i + 1]]
+            .iter()
+            .map(move |&(col, start, len)| (col, &self.w_values[start..start + len]))
     }
 }
 
@@ -243,6 +251,9 @@ impl ConstraintProblem {
             return self.delassus[(i, j)];
         }
         let sp = &self.sparsity;
+        if i == j && sp.row_norm2.len() == self.rows() {
+            return sp.row_norm2[i];
+        }
         let mut a = 0.0;
         for ei in sp.row_start[i]..sp.row_start[i + 1] {
             for ej in sp.row_start[j]..sp.row_start[j + 1] {

@@ -252,8 +252,13 @@ fn ratio_test(
         best = Some(match best {
             None => i,
             Some(b) => {
-                let (ri, rb) = (x[i] / column[i], x[b] / column[b]);
-                let tie = (ri - rb).abs() <= 1e-12 * ri.abs().max(rb.abs()).max(1e-300);
+                // Basic values are ≥ 0 in exact arithmetic; a rounding-negative one would win the
+                // test with a negative step and leave the basis infeasible.
+                let (ri, rb) = (x[i].max(0.0) / column[i], x[b].max(0.0) / column[b]);
+                // Ties within rounding of the explicitly updated B⁻¹ (a few hundred ulps after
+                // tens of pivots) go to the lexicographic rule: a strict 1e-12 let a symmetric
+                // four-corner contact pick a wrong row on rounding and end on a ray.
+                let tie = (ri - rb).abs() <= 1e-9 * ri.abs().max(rb.abs()).max(1e-300);
                 if !tie {
                     if ri < rb {
                         i

@@ -90,8 +90,7 @@ impl ConstraintSolver for PgsSolver {
         // w_i = W_i · s + b_i + R_i λ_i costs a dot and an axpy over the span of row i of W
         // (the path of its bodies to the root); otherwise, or when the dense row of A is
         // shorter, use the dense row of A.
-        let span_total: usize =
-            problem.sparsity.segment_span.iter().map(|(lo, hi)| hi.saturating_sub(*lo)).sum();
+        let span_total: usize = problem.sparsity.runs.iter().map(|run| run.2).sum();
         let sparse = problem.is_matrix_free()
             || (!problem.sparsity.is_empty()
                 && problem.sparsity.row_start.len() == n + 1

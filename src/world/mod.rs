@@ -222,7 +222,8 @@ impl World {
         self.bodies.push(body);
         self.projections.push(None);
         self.names.push(name.to_string());
-        self.builder = ProblemBuilder::new(self.nv_total, self.options.friction);
+        self.builder = ProblemBuilder::with_blocks(self.nv_total, &self.blocks, self.options.friction)
+            .map_err(StepError::Solver)?;
         self.v_all = DVector::zeros(self.nv_total);
         self.v_free_all = DVector::zeros(self.nv_total);
         Ok(index)
@@ -564,7 +565,6 @@ impl World {
             let (bodies, owners) = (&self.bodies, &self.block_owner);
             self.builder.build_into_blocks(
                 &self.v_free_all,
-                &self.blocks,
                 |block| {
                     let (k, first_dof) = owners[block];
                     let b = &bodies[k];

@@ -104,15 +104,13 @@ impl ProjectionBuffers {
         for i in 0..n {
             error = error.max(self.builder.target(i).abs());
             let column = &mut self.minv_jt[i * nv..(i + 1) * nv];
-            column.copy_from_slice(self.builder.row(i));
+            self.builder.row_into(i, column);
             solve_mass_matrix_slice(&b.model, &b.data, column);
         }
         let mut trace = 0.0;
         for i in 0..n {
             for j in 0..=i {
-                let row = self.builder.row(i);
-                let x = &self.minv_jt[j * nv..(j + 1) * nv];
-                let value: f64 = row.iter().zip(x).map(|(a, b)| a * b).sum();
+                let value = self.builder.row_dot(i, &self.minv_jt[j * nv..(j + 1) * nv]);
                 self.gram[i * n + j] = value;
                 self.gram[j * n + i] = value;
             }
@@ -171,7 +169,7 @@ impl ProjectionBuffers {
         self.linearize(b, closures);
         // Tangent projection of the velocity: μ = (J M⁻¹ Jᵀ)⁻¹ J v, v ← v − M⁻¹Jᵀμ.
         for i in 0..self.builder.len() {
-            self.mu[i] = self.builder.row(i).iter().zip(b.v_next.iter()).map(|(a, v)| a * v).sum();
+            self.mu[i] = self.builder.row_dot(i, b.v_next.as_slice());
         }
         self.correction(nv);
         b.v_next += &self.delta;

@@ -383,19 +383,16 @@ impl StageWork {
         debug_assert_eq!(n, self.builder.len());
         // λ = (J M⁻¹ Jᵀ + εI)⁻¹ (−J̇ v − J q̈_free), q̈ = q̈_free + M⁻¹ Jᵀ λ.
         for i in 0..n {
-            let row = self.builder.row(i);
-            let j_a: f64 = row.iter().zip(self.force.iter()).map(|(r, a)| r * a).sum();
+            let j_a = self.builder.row_dot(i, self.force.as_slice());
             self.lambda[i] = -self.drift[i] - j_a;
             let column = &mut self.minv_jt[i * nv..(i + 1) * nv];
-            column.copy_from_slice(row);
+            self.builder.row_into(i, column);
             solve_mass_matrix_slice(model, data, column);
         }
         let mut trace = 0.0;
         for i in 0..n {
-            let row = self.builder.row(i);
             for j in 0..=i {
-                let x = &self.minv_jt[j * nv..(j + 1) * nv];
-                let value: f64 = row.iter().zip(x).map(|(r, m)| r * m).sum();
+                let value = self.builder.row_dot(i, &self.minv_jt[j * nv..(j + 1) * nv]);
                 self.gram[i * n + j] = value;
                 self.gram[j * n + i] = value;
             }
