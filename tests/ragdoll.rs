@@ -213,10 +213,11 @@ fn a_powered_ragdoll_holds_its_pose_with_bounded_torque() {
     let (limp_dev, strong_dev) = (deviation(&limp), deviation(&strong));
     println!("RMS joint deviation from the T-pose: passive {limp_dev:.3} rad, powered {strong_dev:.3} rad");
     // Lying on the ground the T-pose cannot be exact: the ground pushes the toes and hands, and
-    // the bounded servos yield at impact. Measured: passive 0.75 rad, powered 0.25 rad RMS; the
-    // bounds leave 20 % for solver changes while still failing a servo that does nothing.
+    // the bounded servos yield at impact. Measured: passive 0.54 rad (0.75 before the ragdoll's
+    // joints got passive damping), powered 0.26 rad RMS; the bounds leave ~20 % for solver
+    // changes while still failing a servo that does nothing (a ratio near 1).
     assert!(strong_dev < 0.3, "the powered ragdoll lost its pose: {strong_dev} rad RMS");
-    assert!(strong_dev < 0.4 * limp_dev, "powered {strong_dev} vs passive {limp_dev}");
+    assert!(strong_dev < 0.6 * limp_dev, "powered {strong_dev} vs passive {limp_dev}");
     assert!(f.max_violation < ONE_DEGREE);
     // Every motor impulse is within its dof's torque bound times the step.
     let servo = strong.world.multibody(0).pose_servo().unwrap().clone();

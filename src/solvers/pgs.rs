@@ -20,6 +20,13 @@ pub struct PgsSolver {
     pub omega: f64,
     /// Start from the impulses passed in (else from zero).
     pub warm_start: bool,
+    /// Accelerate the sweeps as nonsmooth nonlinear conjugate gradients (NNCG: Silcowitz,
+    /// Niebe and Erleben, "A nonsmooth nonlinear conjugate gradient method for interactive
+    /// contact force problems", 2010): the change of one sweep is taken as the negative
+    /// gradient, and a Fletcher–Reeves multiple of the previous direction is added, with a
+    /// restart when the change grows. Long chains, piles and high mass ratios, where plain
+    /// sweeps stall, converge in a fraction of the sweeps; each sweep costs a little more.
+    pub accelerate: bool,
     /// Scratch space reused between solves (leave it at its default).
     pub workspace: PgsWorkspace,
 }
@@ -32,6 +39,9 @@ pub struct PgsWorkspace {
     diagonal: Vec<f64>,
     /// A between the two friction rows of each contact.
     coupling: Vec<f64>,
+    /// NNCG: impulses before the sweep and the search direction.
+    previous: Vec<f64>,
+    direction: Vec<f64>,
 }
 
 impl Default for PgsSolver {
@@ -41,6 +51,7 @@ impl Default for PgsSolver {
             tolerance: 1e-9,
             omega: 1.0,
             warm_start: true,
+            accelerate: true,
             workspace: PgsWorkspace::default(),
         }
     }
@@ -54,7 +65,14 @@ impl PgsSolver {
 
     /// PGS with every setting given.
     pub fn new(iterations: usize, tolerance: f64, omega: f64, warm_start: bool) -> Self {
-        Self { iterations, tolerance, omega, warm_start, workspace: PgsWorkspace::default() }
+        Self {
+            iterations,
+            tolerance,
+            omega,
+            warm_start,
+            accelerate: true,
+            workspace: PgsWorkspace::default(),
+        }
     }
 }
 
@@ -126,9 +144,21 @@ impl ConstraintSolver for PgsSolver {
                 axpy_blocks(problem, i, delta, &mut dv.borrow_mut());
             }
         };
+        let (mut previous, mut direction) =
+            (std::mem::take(&mut self.workspace.previous), std::mem::take(&mut self.workspace.direction));
+        if self.accelerate {
+            previous.clear();
+            previous.resize(n, 0.0);
+            direction.clear();
+            direction.resize(n, 0.0);
+        }
+        let mut last_gradient2 = 0.0;
         let mut sweeps = 0;
         for _ in 0..self.iterations {
             sweeps += 1;
+            if self.accelerate {
+                previous.copy_from_slice(lambda.as_slice());
+            }
             let mut change: f64 = 0.0;
             for i in 0..n {
                 let d = diag(i);
@@ -200,7 +230,26 @@ impl ConstraintSolver for PgsSolver {
             if change <= self.tolerance {
                 break;
             }
+            if self.accelerate && sweeps < self.iterations {
+                // NNCG: −∇f = λ_{k+1} − λ_k; β = ‖∇f_{k+1}‖² / ‖∇f_k‖² (restart if > 1);
+                // λ_{k+1} += β p_k; p_{k+1} = β p_k − ∇f_{k+1}.
+                let gradient2: f64 = lambda.iter().zip(&previous).map(|(l, p)| (l - p) * (l - p)).sum();
+                let beta = if last_gradient2 > 0.0 { gradient2 / last_gradient2 } else { f64::INFINITY };
+                last_gradient2 = gradient2;
+                // With x̃ the swept impulses, p_{k+1} = β p_k + x̃ − λ_k = λ_{k+1} − λ_k in
+                // both cases (β = 0 on a restart).
+                for i in 0..n {
+                    if beta <= 1.0 {
+                        let step = beta * direction[i];
+                        lambda[i] += step;
+                        moved(i, step);
+                    }
+                    direction[i] = lambda[i] - previous[i];
+                }
+            }
         }
+        self.workspace.previous = previous;
+        self.workspace.direction = direction;
         self.workspace.dv = dv.into_inner();
         Ok(SolveInfo { iterations: sweeps, note: None })
     }
