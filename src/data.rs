@@ -62,7 +62,8 @@ pub struct Data {
     pub ddq: DVector<f64>,
     /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`].
     pub mass_matrix: DMatrix<f64>,
-    /// Tree-sparse `Lᵀ D L` factor of `M` (unit L below the diagonal, D on it).
+    /// Tree-sparse `Lᵀ D L` factor of `M` (unit L below the diagonal, D on it, and L's rows
+    /// mirrored above the diagonal: entry (j, k) = L_kj for each ancestor j of k).
     pub mass_matrix_factor: DMatrix<f64>,
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).

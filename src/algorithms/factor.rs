@@ -39,6 +39,13 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
     }
     for k in 0..model.nv() {
         data.factor_inv_sqrt_d[k] = 1.0 / data.mass_matrix_factor[(k, k)].sqrt();
+        // L's row k mirrored into column k above the diagonal (contiguous in memory), for the
+        // row scaling of the constraint assembly, which walks ancestors in stretches.
+        let mut j = lambda[k];
+        while j != NO_DOF {
+            data.mass_matrix_factor[(j, k)] = data.mass_matrix_factor[(k, j)];
+            j = lambda[j];
+        }
     }
     Ok(())
 }

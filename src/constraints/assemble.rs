@@ -440,6 +440,7 @@ pub struct TreeFactor<'a> {
     factor: &'a DMatrix<f64>,
     inv_sqrt_d: &'a [f64],
     dof_parent: &'a [usize],
+    run_start: &'a [usize],
 }
 
 impl<'a> TreeFactor<'a> {
@@ -449,24 +450,39 @@ impl<'a> TreeFactor<'a> {
             factor: &data.mass_matrix_factor,
             inv_sqrt_d: data.factor_inv_sqrt_d.as_slice(),
             dof_parent: &model.dof_parent,
+            run_start: &model.dof_run_start,
         }
+    }
+
+    /// Column `k` of the factor: L_kj at index j for the ancestors j of k (the mirror).
+    fn column(&self, k: usize) -> &[f64] {
+        let n = self.factor.nrows();
+        &self.factor.as_slice()[k * n..(k + 1) * n]
     }
 
     /// For one row segment J (on the dofs `first_dof..first_dof + w.len()` of a block that is a
     /// union of whole root subtrees, `w` holding J on entry, `last` its last non-zero entry):
     /// writes w = D^{-1/2} L⁻ᵀ Jᵀ and returns the span [lo, hi) outside which w is zero.
     fn scale_row(&self, first_dof: usize, last: usize, w: &mut [f64]) -> (usize, usize) {
-        let (h, parent) = (self.factor, self.dof_parent);
-        // w ← L⁻ᵀ w, walking each non-zero entry's ancestors (they have lower indices).
+        // w ← L⁻ᵀ w, walking each non-zero entry's ancestors (they have lower indices) in
+        // contiguous stretches, L_kj read from the factor's mirrored column k.
         for k in (0..=last).rev() {
             let wk = w[k];
             if wk == 0.0 {
                 continue;
             }
-            let (mut j, row) = (parent[first_dof + k], first_dof + k);
-            while j != NO_DOF {
-                w[j - first_dof] -= h[(row, j)] * wk;
-                j = parent[j];
+            let row = first_dof + k;
+            let column = self.column(row);
+            let (mut start, mut end) = (self.run_start[row], row);
+            loop {
+                for (w, l) in w[start - first_dof..end - first_dof].iter_mut().zip(&column[start..end]) {
+                    *w -= l * wk;
+                }
+                let next = self.dof_parent[start];
+                if next == NO_DOF {
+                    break;
+                }
+                (start, end) = (self.run_start[next], next + 1);
             }
         }
         let Some(lo) = w[..=last].iter().position(|x| *x != 0.0) else { return (0, 0) };
@@ -479,16 +495,20 @@ impl<'a> TreeFactor<'a> {
     /// x ← L⁻¹ D^{-1/2} x on a block's slice (the inverse map of the row scaling W = J L⁻¹ D^{-1/2}, so
     /// that M⁻¹Jᵀλ = L⁻¹ D^{-1/2} Wᵀλ).
     pub fn unscale_solve(&self, first_dof: usize, x: &mut [f64]) {
-        let (h, parent) = (self.factor, self.dof_parent);
         let Some(lo) = x.iter().position(|x| *x != 0.0) else { return };
         // Entries below lo stay zero: no dof there has an ancestor at or above lo.
         for k in lo..x.len() {
             let row = first_dof + k;
+            let column = self.column(row);
             let mut xk = x[k] * self.inv_sqrt_d[row];
-            let mut j = parent[row];
-            while j != NO_DOF {
-                xk -= h[(row, j)] * x[j - first_dof];
-                j = parent[j];
+            let (mut start, mut end) = (self.run_start[row], row);
+            loop {
+                xk -= dot(&column[start..end], &x[start - first_dof..end - first_dof]);
+                let next = self.dof_parent[start];
+                if next == NO_DOF {
+                    break;
+                }
+                (start, end) = (self.run_start[next], next + 1);
             }
             x[k] = xk;
         }

@@ -266,6 +266,7 @@ impl ModelBuilder {
             idx_v: vec![0],
             dof_joint: Vec::new(),
             dof_parent: Vec::new(),
+            dof_run_start: Vec::new(),
             lower_position_limit: DVector::zeros(0),
             upper_position_limit: DVector::zeros(0),
             velocity_limit: DVector::zeros(0),
@@ -332,6 +333,10 @@ impl ModelBuilder {
             return Err(ModelError::Cycle { body: specs[k].name.clone() });
         }
         fill_limits(&mut model, &limits);
+        for k in 0..model.nv {
+            let start = if k > 0 && model.dof_parent[k] == k - 1 { model.dof_run_start[k - 1] } else { k };
+            model.dof_run_start.push(start);
+        }
         Ok(model)
     }
 

@@ -61,6 +61,11 @@ pub struct Model {
     pub(crate) idx_v: Vec<usize>,
     pub(crate) dof_joint: Vec<usize>,
     pub(crate) dof_parent: Vec<usize>,
+    /// Per dof k, the first dof s of the contiguous chain ending at k (the parent of each of
+    /// s+1..=k is the dof before it): the ancestors of k are s..k and those of `dof_parent[s]`,
+    /// so walks to the root run over contiguous stretches (a free joint's six dofs, a ball
+    /// joint's three, a hinge chain numbered depth-first).
+    pub(crate) dof_run_start: Vec<usize>,
     pub(crate) lower_position_limit: DVector<f64>,
     pub(crate) upper_position_limit: DVector<f64>,
     pub(crate) velocity_limit: DVector<f64>,
