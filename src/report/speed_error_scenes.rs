@@ -536,3 +536,20 @@ pub(crate) fn run_contact(
     let (error, energy, secondary) = result.unwrap_or((f64::NAN, f64::NAN, f64::NAN));
     Ok(ContactRun { error, energy, secondary, cost_us_per_s: median(&mut times) * 1e6 / (steps as f64 * dt) })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_are_sampled_every_40_ms_or_on_their_own_grid() {
+        assert_eq!(sample_interval(1e-2, 5.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.04 / 3.0, 5.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.04, 1.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.05, 5.0), Some(0.05));
+        assert_eq!(sample_interval(1.0 / 18.0, 1.0), Some(1.0 / 18.0));
+        // 30 ms divides neither 40 ms nor 5 s; 1/18 s does not divide 0.2 s.
+        assert_eq!(sample_interval(0.03, 5.0), None);
+        assert_eq!(sample_interval(1.0 / 18.0, 0.2), None);
+    }
+}
