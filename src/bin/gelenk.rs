@@ -160,6 +160,10 @@ enum ReportCommand {
         /// Timed repeats per configuration (median reported); default 3, 1 with --quick.
         #[arg(long)]
         repeats: Option<usize>,
+        /// Only these scenes (pendulum5, dzhanibekov, chain30, bouncing_ball, sliding_box,
+        /// stack10, four_bar); default all.
+        #[arg(long, value_delimiter = ',')]
+        scenes: Vec<String>,
     },
 }
 
@@ -228,8 +232,8 @@ fn main() -> ExitCode {
             report_stability(out.as_deref(), &cases, &solvers, &dt, &integrators)
         }
         Command::Render { scene, out, frames, duration } => render(&scene, &out, frames, duration),
-        Command::Report { what: ReportCommand::SpeedError { out, quick, peers, repeats } } => {
-            report_speed_error(&out, quick, &peers, repeats)
+        Command::Report { what: ReportCommand::SpeedError { out, quick, peers, repeats, scenes } } => {
+            report_speed_error(&out, quick, &peers, repeats, scenes)
         }
         Command::Bench { what: BenchCommand::Dynamics { model, floating, json, rounds } } => {
             bench_dynamics(&model, floating, json, rounds)
@@ -900,13 +904,20 @@ fn report_stability(
     Ok(())
 }
 
-fn report_speed_error(out: &Path, quick: bool, peers: &Path, repeats: Option<usize>) -> Result<(), String> {
+fn report_speed_error(
+    out: &Path,
+    quick: bool,
+    peers: &Path,
+    repeats: Option<usize>,
+    scenes: Vec<String>,
+) -> Result<(), String> {
     use gelenk::report::speed_error;
     use std::io::{IsTerminal, Write};
     let options = speed_error::SpeedErrorOptions {
         quick,
         peers_dir: peers.to_path_buf(),
         repeats: repeats.unwrap_or(if quick { 1 } else { 3 }),
+        scenes,
     };
     let tty = std::io::stderr().is_terminal();
     let report = speed_error::run(&options, |what, fraction| {

@@ -5,12 +5,15 @@
 //! - Smooth scenes (no contact), each stepped by every [`IntegratorKind`] at several steps:
 //!   `pendulum5` (../shared/peers/pendulum5.xml through the MJCF reader, hinges at 0.3 rad, 5 s;
 //!   error: largest joint-angle error at T, MuJoCo's measure; secondary: the largest over
-//!   samples every 40 ms; energy: (E(T) − E₀)/(E₀ − E_rest)),
+//!   samples every 40 ms, or at every step for steps longer than 40 ms that do not divide it;
+//!   energy: (E(T) − E₀)/(E₀ − E_rest)),
 //!   `dzhanibekov` (free body near its intermediate axis, 20 s; error: relative flip-period
 //!   error; energy: relative kinetic-energy drift; secondary: relative angular-momentum drift)
 //!   and `chain30` (30 links, last 1000× heavier, 1 s; as the pendulum). The reference is
-//!   Gragg–Bulirsch–Stoer with 8 columns (order 16); the full report also runs it at half the
-//!   step and prints the difference, the reference's own error.
+//!   Gragg–Bulirsch–Stoer with 8 columns (order 16), run on each sample grid the suite needs
+//!   (its step the largest divisor of the sample interval not above the scene's reference
+//!   step); the full report also runs it at half the step and prints the difference, the
+//!   reference's own error.
 //! - Contact scenes through the [`crate::world::World`] (its velocity-level step) with several
 //!   solver chains and steps: bouncing ball (apex after 1–3 bounces against ε²ⁿh), sliding box
 //!   (stopping distance against v₀²/(2μg)), 10-box stack (largest displacement; penetration),
@@ -20,8 +23,8 @@
 
 use super::speed_error_plot::plot;
 use super::speed_error_scenes::{
-    chain30, dzhanibekov, pendulum5, run_contact, run_smooth, smooth_errors, ContactScene, SmoothScene,
-    Trajectory,
+    chain30, dzhanibekov, pendulum5, run_contact, run_smooth, sample_interval, smooth_errors, ContactScene,
+    SmoothScene, Trajectory, MAX_EVALUATIONS, SAMPLE_INTERVAL,
 };
 use crate::error::{MjcfError, ModelError};
 use crate::integrators::{IntegratorError, IntegratorKind};
@@ -64,6 +67,9 @@ pub enum ReportError {
         /// Reference step (s).
         dt: f64,
     },
+    /// A scene asked for by name does not exist.
+    #[error("unknown scene `{0}` (pendulum5, dzhanibekov, chain30, bouncing_ball, sliding_box, stack10, four_bar)")]
+    UnknownScene(String),
     /// Drawing the plot failed.
     #[error("plot {path}: {message}")]
     Plot {
@@ -84,6 +90,8 @@ pub struct SpeedErrorOptions {
     pub peers_dir: PathBuf,
     /// Timed repeats per configuration; the median is reported.
     pub repeats: usize,
+    /// Run only these scenes (names as in [`SCENES`]); empty runs them all.
+    pub scenes: Vec<String>,
 }
 
 /// One configuration at one step size.
@@ -228,7 +236,7 @@ fn smooth_suite(quick: bool) -> Vec<(IntegratorKind, Vec<f64>)> {
         return vec![
             (SemiImplicitEuler, vec![1e-2, 1e-3]),
             (Rk4, vec![1e-2, 2e-3]),
-            (Rk8, vec![4e-2]),
+            (Rk8, vec![5e-2, 4e-2]),
             (DormandPrince45 { rtol: 1e-6, atol: 1e-6 }, vec![0.04]),
             (GraggBulirschStoer { columns: 6 }, vec![0.04]),
         ];
@@ -241,7 +249,27 @@ fn smooth_suite(quick: bool) -> Vec<(IntegratorKind, Vec<f64>)> {
         (VelocityVerlet, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4]),
         (Rk4, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3, 1e-3, 5e-4, 1e-4]),
         (Rk6, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3]),
-        (Rk8, vec![4e-2, 2e-2, 4e-2 / 3.0, 1e-2, 8e-3, 5e-3, 4e-3, 2e-3]),
+        // Steps that do not divide 40 ms (1/16, 1/18, 1/20, 1/30, 1/40 s) divide every scene's
+        // duration and are sampled on their own grid: RK8 stays within 2e-4 rad on the pendulum
+        // up to 50 ms, and the steps between 20 and 40 ms fill the front there.
+        (
+            Rk8,
+            vec![
+                1.0 / 16.0,
+                1.0 / 18.0,
+                5e-2,
+                4e-2,
+                1.0 / 30.0,
+                2.5e-2,
+                2e-2,
+                4e-2 / 3.0,
+                1e-2,
+                8e-3,
+                5e-3,
+                4e-3,
+                2e-3,
+            ],
+        ),
         dopri(1e-3),
         dopri(1e-4),
         dopri(1e-5),
@@ -294,7 +322,12 @@ pub fn run(
     let quick = options.quick;
     let repeats = options.repeats.max(1);
     let mut report = SpeedErrorReport { quick, ..Default::default() };
+    if let Some(unknown) = options.scenes.iter().find(|s| !SCENES.iter().any(|m| m.scene == s.as_str())) {
+        return Err(ReportError::UnknownScene(unknown.clone()));
+    }
+    let wanted = |name: &str| options.scenes.is_empty() || options.scenes.iter().any(|s| s == name);
     let mut scenes: Vec<SmoothScene> = vec![pendulum5(&options.peers_dir)?, dzhanibekov()?, chain30()?];
+    scenes.retain(|s| wanted(s.name));
     if quick {
         for s in &mut scenes {
             s.duration = match s.name {
@@ -307,18 +340,25 @@ pub fn run(
     }
     let suite = smooth_suite(quick);
     let (chains, contact_dts) = contact_suite(quick);
-    let contact_scenes =
-        [ContactScene::BouncingBall, ContactScene::SlidingBox, ContactScene::Stack10, ContactScene::FourBar];
+    let mut contact_scenes = vec![
+        ContactScene::BouncingBall,
+        ContactScene::SlidingBox,
+        ContactScene::Stack10,
+        ContactScene::FourBar,
+    ];
+    contact_scenes.retain(|s| wanted(s.name()));
     let total = scenes.len() * suite.iter().map(|(_, d)| d.len()).sum::<usize>()
         + contact_scenes.len() * chains.len() * contact_dts.len();
     let mut done = 0usize;
     let columns = if quick { 6 } else { 8 };
     for scene in &scenes {
         progress(&format!("{}: reference", scene.name), done as f64 / total as f64);
-        let reference = reference_run(scene, columns, scene.reference_dt)?;
+        // One reference per sample interval, made on the first run that needs it.
+        let mut references: Vec<Trajectory> = vec![reference_run(scene, columns, SAMPLE_INTERVAL, 1)?];
         if !quick {
-            let half = reference_run(scene, columns, scene.reference_dt / 2.0)?;
-            let (e, _, s) = smooth_errors(scene, &half, &reference);
+            let half = reference_run(scene, columns, SAMPLE_INTERVAL, 2)?;
+            let reference = &references[0];
+            let (e, _, s) = smooth_errors(scene, &half, reference);
             report.notes.push(format!(
                 "{}: reference GBS {columns} columns at dt = {}; against dt/2 it differs by {e:.1e} ({}) and {s:.1e} ({})",
                 scene.name,
@@ -334,9 +374,25 @@ pub fn run(
                     done as f64 / total as f64,
                 );
                 done += 1;
-                match run_smooth(scene, *kind, dt, repeats, super::speed_error_scenes::MAX_EVALUATIONS) {
+                let Some(interval) = sample_interval(dt, scene.duration) else {
+                    report.failed.push((
+                        scene.name.into(),
+                        kind.label(),
+                        dt,
+                        format!("skipped: the step divides neither {SAMPLE_INTERVAL} s nor the duration"),
+                    ));
+                    continue;
+                };
+                let reference = match references.iter().position(|r| r.interval == interval) {
+                    Some(k) => &references[k],
+                    None => {
+                        references.push(reference_run(scene, columns, interval, 1)?);
+                        &references[references.len() - 1]
+                    }
+                };
+                match run_smooth(scene, *kind, dt, interval, repeats, MAX_EVALUATIONS) {
                     Ok(Some(run)) => {
-                        let (error, energy, secondary) = smooth_errors(scene, &run, &reference);
+                        let (error, energy, secondary) = smooth_errors(scene, &run, reference);
                         if [error, energy, secondary, run.cost_us_per_s].iter().all(|x| x.is_finite()) {
                             report.rows.push(Measurement {
                                 scene: scene.name.to_string(),
@@ -356,20 +412,12 @@ pub fn run(
                             ));
                         }
                     }
-                    Ok(None) => {
-                        let per_sample = super::speed_error_scenes::SAMPLE_INTERVAL / dt;
-                        if (per_sample - per_sample.round()).abs() < 1e-9 {
-                            report.failed.push((
-                                scene.name.into(),
-                                kind.label(),
-                                dt,
-                                format!(
-                                    "skipped: more than {} dynamics evaluations",
-                                    super::speed_error_scenes::MAX_EVALUATIONS
-                                ),
-                            ));
-                        }
-                    }
+                    Ok(None) => report.failed.push((
+                        scene.name.into(),
+                        kind.label(),
+                        dt,
+                        format!("skipped: more than {MAX_EVALUATIONS} dynamics evaluations"),
+                    )),
                     Err(e) => report.failed.push((scene.name.into(), kind.label(), dt, e.to_string())),
                 }
             }
@@ -424,8 +472,18 @@ pub fn run(
     Ok(report)
 }
 
-fn reference_run(scene: &SmoothScene, columns: usize, dt: f64) -> Result<Trajectory, ReportError> {
-    run_smooth(scene, IntegratorKind::GraggBulirschStoer { columns }, dt, 1, u64::MAX)?
+/// The reference trajectory of `scene` sampled every `interval` s: Gragg–Bulirsch–Stoer with
+/// `columns` columns at the largest step that divides `interval` and is not above the scene's
+/// reference step, divided by `refine` (2 for the reference's own error estimate).
+fn reference_run(
+    scene: &SmoothScene,
+    columns: usize,
+    interval: f64,
+    refine: usize,
+) -> Result<Trajectory, ReportError> {
+    let per_sample = (interval / scene.reference_dt * (1.0 - 1e-9)).ceil().max(1.0) * refine as f64;
+    let dt = interval / per_sample;
+    run_smooth(scene, IntegratorKind::GraggBulirschStoer { columns }, dt, interval, 1, u64::MAX)?
         .ok_or_else(|| ReportError::Reference { scene: scene.name.to_string(), dt })
 }
 

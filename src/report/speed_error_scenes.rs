@@ -15,8 +15,27 @@ use nalgebra::{DVector, UnitQuaternion};
 use std::path::Path;
 use std::time::Instant;
 
-/// Output interval of the smooth scenes (s): errors are sampled here, every step size divides it.
+/// Output interval of the smooth scenes (s): errors are sampled here when the step divides it;
+/// a longer step is sampled at every step instead (see [`sample_interval`]).
 pub(crate) const SAMPLE_INTERVAL: f64 = 0.04;
+
+/// The sample interval of a run with step `dt` over `duration` seconds: [`SAMPLE_INTERVAL`]
+/// when `dt` divides it, otherwise `dt` itself when it divides the duration (steps longer than
+/// 40 ms, e.g. 50 ms, are compared with a reference sampled on their own grid); None when
+/// neither holds.
+pub(crate) fn sample_interval(dt: f64, duration: f64) -> Option<f64> {
+    let divides = |interval: f64| {
+        let n = (interval / dt).round();
+        n >= 1.0 && (n * dt - interval).abs() <= 1e-9 * interval
+    };
+    if divides(SAMPLE_INTERVAL) {
+        Some(SAMPLE_INTERVAL)
+    } else if divides(duration) {
+        Some(dt)
+    } else {
+        None
+    }
+}
 
 /// A smooth scene: a model, its initial state and duration.
 pub(crate) struct SmoothScene {
@@ -85,6 +104,8 @@ pub(crate) fn chain30() -> Result<SmoothScene, ReportError> {
 pub(crate) struct Trajectory {
     pub q: Vec<f64>,
     pub v: Vec<f64>,
+    /// Time between samples (s).
+    pub interval: f64,
     /// Median wall time per simulated second (µs).
     pub cost_us_per_s: f64,
     /// Mean step size (s): dt for fixed steps, the mean accepted step for the adaptive scheme.
@@ -114,21 +135,22 @@ pub(crate) const MAX_REPEATS: usize = 50;
 
 /// Steps `scene` with `kind` at `dt` (the output interval for the adaptive scheme) `repeats`
 /// times (more for short runs, see [`MIN_TIMED`]; once for a run over [`LONG_RUN`]), sampling
-/// every [`SAMPLE_INTERVAL`]; None if `dt` does not divide the interval or the run needs more
-/// than `budget` dynamics evaluations.
+/// every `interval` seconds; None if `dt` does not divide `interval` or the run needs more than
+/// `budget` dynamics evaluations.
 pub(crate) fn run_smooth(
     scene: &SmoothScene,
     kind: IntegratorKind,
     dt: f64,
+    interval: f64,
     repeats: usize,
     budget: u64,
 ) -> Result<Option<Trajectory>, ReportError> {
     let model = &scene.model;
-    let per_sample = (SAMPLE_INTERVAL / dt).round() as usize;
-    if per_sample == 0 || (per_sample as f64 * dt - SAMPLE_INTERVAL).abs() > 1e-12 {
+    let per_sample = (interval / dt).round() as usize;
+    if per_sample == 0 || (per_sample as f64 * dt - interval).abs() > 1e-9 * interval {
         return Ok(None);
     }
-    let samples = (scene.duration / SAMPLE_INTERVAL).round() as usize;
+    let samples = (scene.duration / interval).round() as usize;
     let tau = DVector::zeros(model.nv());
     let mut data = Data::new(model);
     let mut times = Vec::with_capacity(repeats);
@@ -151,7 +173,7 @@ pub(crate) fn run_smooth(
         let start = Instant::now();
         for k in 1..=samples {
             let evaluations = if let Some(dopri) = dopri.as_mut() {
-                dopri.advance_to(model, &mut data, &mut state, &tau, k as f64 * SAMPLE_INTERVAL)?;
+                dopri.advance_to(model, &mut data, &mut state, &tau, k as f64 * interval)?;
                 crate::integrators::Integrator::evaluations(dopri)
             } else {
                 for _ in 0..per_sample {
@@ -177,10 +199,11 @@ pub(crate) fn run_smooth(
             break;
         }
     }
-    let duration = samples as f64 * SAMPLE_INTERVAL;
+    let duration = samples as f64 * interval;
     Ok(Some(Trajectory {
         q,
         v,
+        interval,
         cost_us_per_s: median(&mut times) * 1e6 / duration,
         mean_step: duration / steps.max(1) as f64,
     }))
@@ -199,12 +222,16 @@ pub(crate) fn median(x: &mut [f64]) -> f64 {
     }
 }
 
-/// Errors of one smooth run against the reference: (primary, energy, secondary).
+/// Errors of one smooth run against the reference: (primary, energy, secondary). Both must
+/// be sampled at the same interval (NaN otherwise: the samples would not be at the same times).
 pub(crate) fn smooth_errors(
     scene: &SmoothScene,
     run: &Trajectory,
     reference: &Trajectory,
 ) -> (f64, f64, f64) {
+    if (run.interval - reference.interval).abs() > 1e-9 * reference.interval {
+        return (f64::NAN, f64::NAN, f64::NAN);
+    }
     let model = &scene.model;
     let (nq, nv) = (model.nq(), model.nv());
     let n = run.samples(nq).min(reference.samples(nq));
@@ -230,8 +257,8 @@ pub(crate) fn smooth_errors(
             let ke = kinetic_energy(model, &mut data, &q_end, &v_end).unwrap_or(f64::NAN);
             let l0 = angular_momentum(model, &scene.initial.q, &scene.initial.v);
             let l = angular_momentum(model, &q_end, &v_end);
-            let period = flip_period(&run.v, nv);
-            let period_ref = flip_period(&reference.v, nv);
+            let period = flip_period(&run.v, nv, run.interval);
+            let period_ref = flip_period(&reference.v, nv, reference.interval);
             let period_error = match (period, period_ref) {
                 (Some(p), Some(r)) => (p - r).abs() / r,
                 _ => 1.0, // no flip where the reference flips: a 100 % error
@@ -261,14 +288,14 @@ fn angular_momentum(model: &Model, q: &DVector<f64>, v: &DVector<f64>) -> Vec3 {
 }
 
 /// Flip period (s) of the Dzhanibekov body: twice the mean time between sign changes of the
-/// intermediate-axis rate ω_y (linear interpolation between samples).
-fn flip_period(v: &[f64], nv: usize) -> Option<f64> {
+/// intermediate-axis rate ω_y (linear interpolation between samples `interval` s apart).
+fn flip_period(v: &[f64], nv: usize, interval: f64) -> Option<f64> {
     let mut crossings = Vec::new();
     let n = v.len() / nv;
     for s in 1..n {
         let (a, b) = (v[(s - 1) * nv + 4], v[s * nv + 4]);
         if (a > 0.0) != (b > 0.0) {
-            crossings.push(SAMPLE_INTERVAL * ((s - 1) as f64 + a / (a - b)));
+            crossings.push(interval * ((s - 1) as f64 + a / (a - b)));
         }
     }
     if crossings.len() < 2 {
@@ -508,4 +535,21 @@ pub(crate) fn run_contact(
     }
     let (error, energy, secondary) = result.unwrap_or((f64::NAN, f64::NAN, f64::NAN));
     Ok(ContactRun { error, energy, secondary, cost_us_per_s: median(&mut times) * 1e6 / (steps as f64 * dt) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn steps_are_sampled_every_40_ms_or_on_their_own_grid() {
+        assert_eq!(sample_interval(1e-2, 5.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.04 / 3.0, 5.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.04, 1.0), Some(SAMPLE_INTERVAL));
+        assert_eq!(sample_interval(0.05, 5.0), Some(0.05));
+        assert_eq!(sample_interval(1.0 / 18.0, 1.0), Some(1.0 / 18.0));
+        // 30 ms divides neither 40 ms nor 5 s; 1/18 s does not divide 0.2 s.
+        assert_eq!(sample_interval(0.03, 5.0), None);
+        assert_eq!(sample_interval(1.0 / 18.0, 0.2), None);
+    }
 }
