@@ -16,8 +16,16 @@ const PIVOT_TOLERANCE: f64 = 1e-12;
 /// subtree cannot move gives [`DynamicsError::SingularMassMatrix`].
 pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), DynamicsError> {
     let h = &mut data.mass_matrix_factor;
-    h.copy_from(&data.mass_matrix);
     let lambda = &model.dof_parent;
+    // Only the entries (k, j) with j an ancestor of k (or k itself) are read and written: the
+    // rest of a tree's M is zero and of no use (ten free boxes: 210 of 3600 entries).
+    for k in 0..model.nv() {
+        let mut j = k;
+        while j != NO_DOF {
+            h[(k, j)] = data.mass_matrix[(k, j)];
+            j = lambda[j];
+        }
+    }
     for k in (0..model.nv()).rev() {
         let pivot = h[(k, k)];
         if pivot.is_nan() || pivot <= 0.0 || pivot <= PIVOT_TOLERANCE * data.mass_matrix[(k, k)] {

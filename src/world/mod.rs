@@ -776,8 +776,10 @@ impl World {
     fn parameters_of(&self, c: &Contact) -> ContactParameters {
         let colliders = self.collision.colliders();
         let (ma, mb) = (colliders[c.collider_a].material, colliders[c.collider_b].material);
-        if let Some(p) = self.pair_parameters.get(&(ma.min(mb), ma.max(mb))) {
-            return *p;
+        if !self.pair_parameters.is_empty() {
+            if let Some(p) = self.pair_parameters.get(&(ma.min(mb), ma.max(mb))) {
+                return *p;
+            }
         }
         let get = |m: u32| self.materials.get(m as usize).copied().unwrap_or(self.options.contact);
         let (a, b) = (get(ma), get(mb));
