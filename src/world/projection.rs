@@ -99,30 +99,8 @@ impl ProjectionBuffers {
             let unit = LoopClosure { erp: 1.0, ..*c };
             add_loop_closure_rows(&mut self.builder, &b.model, &b.data, 0, &unit, 0, 1.0);
         }
-        let (n, nv) = (self.builder.len(), b.model.nv());
-        let mut error: f64 = 0.0;
-        for i in 0..n {
-            error = error.max(self.builder.target(i).abs());
-            let column = &mut self.minv_jt[i * nv..(i + 1) * nv];
-            self.builder.row_into(i, column);
-            solve_mass_matrix_slice(&b.model, &b.data, column);
-        }
-        let mut trace = 0.0;
-        for i in 0..n {
-            for j in 0..=i {
-                let value = self.builder.row_dot(i, &self.minv_jt[j * nv..(j + 1) * nv]);
-                self.gram[i * n + j] = value;
-                self.gram[j * n + i] = value;
-            }
-            trace += self.gram[i * n + i];
-        }
-        // ε relative to the scale of the rows: redundant rows then get a negligible multiplier.
-        let epsilon = 1e-12 * trace.max(f64::MIN_POSITIVE) / n.max(1) as f64;
-        for i in 0..n {
-            self.gram[i * n + i] += epsilon;
-        }
-        cholesky_in_place(&mut self.gram[..n * n], n);
-        error
+        factor_gram(&self.builder, &b.model, &b.data, &mut self.minv_jt, &mut self.gram);
+        (0..self.builder.len()).map(|i| self.builder.target(i).abs()).fold(0.0, f64::max)
     }
 
     /// Solves the Gram system for the right-hand side in `mu` and writes −M⁻¹Jᵀμ into `delta`.
@@ -179,6 +157,39 @@ impl ProjectionBuffers {
 
 /// In-place Cholesky factor `G = L Lᵀ` of a symmetric positive-definite `n × n` row-major
 /// matrix (L in the lower triangle).
+/// For the rows of `builder` (one multibody, `data` holding the factor of M): writes the columns
+/// of M⁻¹Jᵀ into `minv_jt` (nv entries each) and the Cholesky factor of G = J M⁻¹ Jᵀ + εI into
+/// `gram` (row-major, rows × rows), ε = 1e-12 × the mean of G's diagonal so that redundant rows
+/// get a negligible multiplier instead of a failed factorization.
+pub(super) fn factor_gram(
+    builder: &ProblemBuilder,
+    model: &crate::model::Model,
+    data: &crate::data::Data,
+    minv_jt: &mut [f64],
+    gram: &mut [f64],
+) {
+    let (n, nv) = (builder.len(), model.nv());
+    for i in 0..n {
+        let column = &mut minv_jt[i * nv..(i + 1) * nv];
+        builder.row_into(i, column);
+        solve_mass_matrix_slice(model, data, column);
+    }
+    let mut trace = 0.0;
+    for i in 0..n {
+        for j in 0..=i {
+            let value = builder.row_dot(i, &minv_jt[j * nv..(j + 1) * nv]);
+            gram[i * n + j] = value;
+            gram[j * n + i] = value;
+        }
+        trace += gram[i * n + i];
+    }
+    let epsilon = 1e-12 * trace.max(f64::MIN_POSITIVE) / n.max(1) as f64;
+    for i in 0..n {
+        gram[i * n + i] += epsilon;
+    }
+    cholesky_in_place(&mut gram[..n * n], n);
+}
+
 pub(super) fn cholesky_in_place(g: &mut [f64], n: usize) {
     for j in 0..n {
         let mut d = g[j * n + j];

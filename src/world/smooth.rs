@@ -31,11 +31,9 @@
 //! energy, of the order of the squared drift.
 
 use super::multibody::Multibody;
-use super::projection::{cholesky_in_place, cholesky_solve, LoopProjection, ProjectionBuffers};
+use super::projection::{cholesky_solve, factor_gram, LoopProjection, ProjectionBuffers};
 use super::{has_active_limit, World};
-use crate::algorithms::{
-    compute_joint_jacobians, crba, factor_mass_matrix, rnea, solve_mass_matrix, solve_mass_matrix_slice,
-};
+use crate::algorithms::{compute_joint_jacobians, crba, factor_mass_matrix, rnea, solve_mass_matrix};
 use crate::constraints::{
     add_loop_closure_rows, loop_closure_drift_between, FrictionModel, LoopClosure, ProblemBuilder, RowLaw,
     RowOrigin,
@@ -383,26 +381,9 @@ impl StageWork {
         debug_assert_eq!(n, self.builder.len());
         // λ = (J M⁻¹ Jᵀ + εI)⁻¹ (−J̇ v − J q̈_free), q̈ = q̈_free + M⁻¹ Jᵀ λ.
         for i in 0..n {
-            let j_a = self.builder.row_dot(i, self.force.as_slice());
-            self.lambda[i] = -self.drift[i] - j_a;
-            let column = &mut self.minv_jt[i * nv..(i + 1) * nv];
-            self.builder.row_into(i, column);
-            solve_mass_matrix_slice(model, data, column);
+            self.lambda[i] = -self.drift[i] - self.builder.row_dot(i, self.force.as_slice());
         }
-        let mut trace = 0.0;
-        for i in 0..n {
-            for j in 0..=i {
-                let value = self.builder.row_dot(i, &self.minv_jt[j * nv..(j + 1) * nv]);
-                self.gram[i * n + j] = value;
-                self.gram[j * n + i] = value;
-            }
-            trace += self.gram[i * n + i];
-        }
-        let epsilon = 1e-12 * trace.max(f64::MIN_POSITIVE) / n.max(1) as f64;
-        for i in 0..n {
-            self.gram[i * n + i] += epsilon;
-        }
-        cholesky_in_place(&mut self.gram[..n * n], n);
+        factor_gram(&self.builder, model, data, &mut self.minv_jt, &mut self.gram);
         cholesky_solve(&self.gram[..n * n], n, &mut self.lambda[..n]);
         for i in 0..n {
             let x = &self.minv_jt[i * nv..(i + 1) * nv];
