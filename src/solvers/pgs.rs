@@ -41,6 +41,9 @@ pub struct PgsWorkspace {
     coupling: Vec<f64>,
     /// NNCG: impulses before the sweep and the search direction.
     previous: Vec<f64>,
+    /// Per contact, the multiplier γ of the last friction block step: the next sweep starts
+    /// its Newton iteration there (a sliding contact's γ barely moves between sweeps).
+    gamma: Vec<f64>,
     direction: Vec<f64>,
 }
 
@@ -101,6 +104,9 @@ impl ConstraintSolver for PgsSolver {
             let (_, t1, t2) = c.rows();
             problem.delassus_entry(t1, t2)
         }));
+        let mut gamma = std::mem::take(&mut self.workspace.gamma);
+        gamma.clear();
+        gamma.resize(problem.contacts.len(), 0.0);
         let (diagonal, coupling) = (&self.workspace.diagonal, &self.workspace.coupling);
         let diag = |i: usize| diagonal[i];
         // With the block structure, sweep in the factored space (ODE's QuickStep in the metric
@@ -189,6 +195,7 @@ impl ConstraintSolver for PgsSolver {
                                 lambda[nr].max(0.0),
                                 [block.mu, block.mu2],
                                 self.omega,
+                                &mut gamma[contact],
                             ) {
                                 lambda[t1] = p1;
                                 lambda[t2] = p2;
@@ -249,6 +256,7 @@ impl ConstraintSolver for PgsSolver {
             }
         }
         self.workspace.previous = previous;
+        self.workspace.gamma = gamma;
         self.workspace.direction = direction;
         self.workspace.dv = dv.into_inner();
         Ok(SolveInfo { iterations: sweeps, note: None })
@@ -264,7 +272,11 @@ impl ConstraintSolver for PgsSolver {
 /// scalar-rows-then-radial-scaling update it replaces has fixed points that violate maximum
 /// dissipation when G is not isotropic (a wheel: light spin dof against a heavy chassis), which
 /// kept PGS from converging on turning vehicles. γ is found by Newton's method on the secular
-/// equation `1/‖s(γ)‖ = 1/bound` (Moré and Sorensen, 1983). `None` if G is singular.
+/// equation `1/‖s(γ)‖ = 1/bound` (Moré and Sorensen, 1983), started from `gamma_start` (the
+/// last sweep's multiplier of this contact, near the root for a sliding contact; the iteration
+/// is the same safeguarded Newton, γ ≥ 0, at most 30 steps) and leaving the new γ there.
+/// `None` if G is singular.
+#[allow(clippy::too_many_arguments)]
 fn friction_block_step(
     o: [f64; 2],
     w: [f64; 2],
@@ -272,6 +284,7 @@ fn friction_block_step(
     bound: f64,
     mu: [f64; 2],
     omega: f64,
+    gamma_start: &mut f64,
 ) -> Option<(f64, f64)> {
     let [g11, g12, g22] = g;
     let det = g11 * g22 - g12 * g12;
@@ -304,7 +317,7 @@ fn friction_block_step(
         let ds = [-(a22 * s[0] - h12 * s[1]) / det, -(a11 * s[1] - h12 * s[0]) / det];
         (s, ds)
     };
-    let mut gamma: f64 = 0.0;
+    let mut gamma: f64 = gamma_start.max(0.0);
     for _ in 0..30 {
         let (s, ds) = solve(gamma);
         let norm = norm2(s[0], s[1]);
@@ -319,6 +332,7 @@ fn friction_block_step(
         let next = gamma - phi / dphi;
         gamma = if next.is_finite() { next.max(0.0) } else { break };
     }
+    *gamma_start = gamma;
     let (s, _) = solve(gamma);
     // Land exactly on the boundary.
     let norm = norm2(s[0], s[1]);
