@@ -50,10 +50,14 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
         // L's row k mirrored into column k above the diagonal (contiguous in memory), for the
         // row scaling of the constraint assembly, which walks ancestors in stretches.
         let mut j = lambda[k];
+        let mut coupled = false;
         while j != NO_DOF {
-            data.mass_matrix_factor[(j, k)] = data.mass_matrix_factor[(k, j)];
+            let l = data.mass_matrix_factor[(k, j)];
+            data.mass_matrix_factor[(j, k)] = l;
+            coupled |= l != 0.0;
             j = lambda[j];
         }
+        data.factor_row_coupled[k] = coupled;
     }
     Ok(())
 }

@@ -114,6 +114,41 @@ pub fn add_point_direction_row(
     });
 }
 
+/// Appends, for every dof k on the path of body `body` to the root, `(col + k, sign · J_p,k)`:
+/// the column and the world velocity of the point `point` (world, m) fixed on the body per unit
+/// rate of dof k. Several rows at the same point (a contact's normal and tangents) then cost a
+/// dot product per entry ([`add_point_rates_row`]) instead of a cross product each. Needs
+/// `data.j_world`.
+pub fn point_rates(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    point: &Vec3,
+    sign: f64,
+    col: usize,
+    out: &mut Vec<(usize, Vec3)>,
+) {
+    let mut k = last_dof_of(model, body);
+    while k != NO_DOF {
+        let column = &data.j_world[k];
+        out.push((col + k, (column.linear + column.angular.cross(point)) * sign));
+        k = model.dof_parent[k];
+    }
+}
+
+/// Adds `dᵀ u` to `row[c]` for every `(c, u)` of `rates` (from [`point_rates`]): a row along the
+/// world direction `direction`.
+pub fn add_point_rates_row(rates: &[(usize, Vec3)], direction: &Vec3, row: &mut (impl JacobianRow + ?Sized)) {
+    let Some(&(c0, _)) = rates.first() else { return };
+    let (mut segment, mut first) = row.segment_mut(c0);
+    for (c, u) in rates {
+        if *c < first || c - first >= segment.len() {
+            (segment, first) = row.segment_mut(*c);
+        }
+        segment[c - first] += direction.dot(u);
+    }
+}
+
 /// Adds `sign · dᵀ J_ω` to `row[col..col + nv]`: the rate of body `body`'s angular velocity about
 /// the world direction `direction`. Needs `data.j_world`.
 pub fn add_angular_direction_row(

@@ -43,8 +43,8 @@ mod shape;
 mod world;
 
 pub use jacobian::{
-    add_angular_direction_row, add_point_direction_row, add_point_jacobian, contact_frame, contact_jacobian,
-    tangents, JacobianRow,
+    add_angular_direction_row, add_point_direction_row, add_point_jacobian, add_point_rates_row,
+    contact_frame, contact_jacobian, point_rates, tangents, JacobianRow,
 };
 pub use mesh::{MeshData, MeshOptions, MissingMeshPolicy};
 pub use reduce::MAX_POINTS_PER_PAIR;

@@ -36,6 +36,8 @@ pub struct ProblemBuilder {
     laws: Vec<RowLaw>,
     contacts: Vec<ContactBlock>,
     origins: Vec<RowOrigin>,
+    /// Scratch of the contact rows ([`crate::collision::point_rates`]), kept between steps.
+    point_rates: Vec<(usize, crate::math::Vec3)>,
     /// Friction model of the contacts.
     pub friction: FrictionModel,
 }
@@ -116,6 +118,7 @@ impl ProblemBuilder {
             laws: Vec::new(),
             contacts: Vec::new(),
             origins: Vec::new(),
+            point_rates: Vec::new(),
             friction,
         }
     }
@@ -170,6 +173,16 @@ impl ProblemBuilder {
     /// Whether there are no rows.
     pub fn is_empty(&self) -> bool {
         self.laws.is_empty()
+    }
+
+    /// The contact rows' scratch buffer (give it back with [`ProblemBuilder::put_point_rates`]).
+    pub(crate) fn take_point_rates(&mut self) -> Vec<(usize, crate::math::Vec3)> {
+        std::mem::take(&mut self.point_rates)
+    }
+
+    /// Returns the scratch buffer taken by [`ProblemBuilder::take_point_rates`].
+    pub(crate) fn put_point_rates(&mut self, rates: Vec<(usize, crate::math::Vec3)>) {
+        self.point_rates = rates;
     }
 
     /// Removes every row (keeps the buffers).
@@ -347,35 +360,6 @@ impl ProblemBuilder {
             sp.run_start.push(sp.runs.len());
             sp.row_start.push(sp.blocks_of_row.len());
         }
-        // Rows of each block, by counting sort (rows stay in increasing order).
-        sp.block_start.clear();
-        sp.block_start.resize(blocks.len() + 1, 0);
-        for &b in &sp.blocks_of_row {
-            sp.block_start[b + 1] += 1;
-        }
-        for b in 0..blocks.len() {
-            sp.block_start[b + 1] += sp.block_start[b];
-        }
-        sp.rows_of_block.clear();
-        sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
-        sp.segment_of_block_row.clear();
-        sp.segment_of_block_row.resize(sp.blocks_of_row.len(), 0);
-        sp.span_of_block_row.clear();
-        sp.span_of_block_row.resize(sp.blocks_of_row.len(), (0, 0));
-        for i in 0..n {
-            for e in sp.row_start[i]..sp.row_start[i + 1] {
-                let b = sp.blocks_of_row[e];
-                // block_start[b] is used as the fill cursor, then restored below.
-                sp.rows_of_block[sp.block_start[b]] = i;
-                sp.segment_of_block_row[sp.block_start[b]] = sp.segment_start[e];
-                sp.span_of_block_row[sp.block_start[b]] = sp.segment_span[e];
-                sp.block_start[b] += 1;
-            }
-        }
-        for b in (0..blocks.len()).rev() {
-            sp.block_start[b + 1] = sp.block_start[b];
-        }
-        sp.block_start[0] = 0;
         // Dense J and M⁻¹Jᵀ (for export and inspection), if asked.
         if dense {
             problem.minv_jt.fill(0.0);
@@ -405,9 +389,14 @@ impl ProblemBuilder {
             if problem.delassus.shape() != (n, n) {
                 problem.delassus = DMatrix::zeros(n, n);
             }
+            index_rows_by_block(&mut problem.sparsity);
             delassus_from_w(&problem.sparsity, &mut problem.delassus);
-        } else if problem.delassus.nrows() != 0 {
-            problem.delassus = DMatrix::zeros(0, 0);
+        } else {
+            // Matrix-free: the per-block index is only needed to form A, which is left unformed.
+            problem.sparsity.block_start.clear();
+            if problem.delassus.nrows() != 0 {
+                problem.delassus = DMatrix::zeros(0, 0);
+            }
         }
         for i in 0..n {
             problem.bias[i] = self.row_dot(i, v_free.as_slice()) - self.targets[i];
@@ -439,6 +428,7 @@ pub fn assemble_single(
 pub struct TreeFactor<'a> {
     factor: &'a DMatrix<f64>,
     inv_sqrt_d: &'a [f64],
+    coupled: &'a [bool],
     dof_parent: &'a [usize],
     run_start: &'a [usize],
 }
@@ -449,6 +439,7 @@ impl<'a> TreeFactor<'a> {
         Self {
             factor: &data.mass_matrix_factor,
             inv_sqrt_d: data.factor_inv_sqrt_d.as_slice(),
+            coupled: &data.factor_row_coupled,
             dof_parent: &model.dof_parent,
             run_start: &model.dof_run_start,
         }
@@ -468,10 +459,10 @@ impl<'a> TreeFactor<'a> {
         // contiguous stretches, L_kj read from the factor's mirrored column k.
         for k in (0..=last).rev() {
             let wk = w[k];
-            if wk == 0.0 {
+            let row = first_dof + k;
+            if wk == 0.0 || !self.coupled[row] {
                 continue;
             }
-            let row = first_dof + k;
             let column = self.column(row);
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
@@ -501,6 +492,10 @@ impl<'a> TreeFactor<'a> {
             let row = first_dof + k;
             let column = self.column(row);
             let mut xk = x[k] * self.inv_sqrt_d[row];
+            if !self.coupled[row] {
+                x[k] = xk;
+                continue;
+            }
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
                 xk -= dot(&column[start..end], &x[start - first_dof..end - first_dof]);
@@ -546,6 +541,40 @@ fn push_runs(
         }
         runs.push((col + first, start + first, end - first));
     }
+}
+
+/// The rows touching each block (`rows_of_block`, `block_start`) with their segments and spans,
+/// by counting sort over the rows' blocks (rows stay in increasing order): the index
+/// [`delassus_from_w`] walks.
+pub(crate) fn index_rows_by_block(sp: &mut RowSparsity) {
+    sp.block_start.clear();
+    sp.block_start.resize(sp.blocks.len() + 1, 0);
+    for &b in &sp.blocks_of_row {
+        sp.block_start[b + 1] += 1;
+    }
+    for b in 0..sp.blocks.len() {
+        sp.block_start[b + 1] += sp.block_start[b];
+    }
+    sp.rows_of_block.clear();
+    sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
+    sp.segment_of_block_row.clear();
+    sp.segment_of_block_row.resize(sp.blocks_of_row.len(), 0);
+    sp.span_of_block_row.clear();
+    sp.span_of_block_row.resize(sp.blocks_of_row.len(), (0, 0));
+    for i in 0..sp.row_start.len().saturating_sub(1) {
+        for e in sp.row_start[i]..sp.row_start[i + 1] {
+            let b = sp.blocks_of_row[e];
+            // block_start[b] is used as the fill cursor, then restored below.
+            sp.rows_of_block[sp.block_start[b]] = i;
+            sp.segment_of_block_row[sp.block_start[b]] = sp.segment_start[e];
+            sp.span_of_block_row[sp.block_start[b]] = sp.segment_span[e];
+            sp.block_start[b] += 1;
+        }
+    }
+    for b in (0..sp.blocks.len()).rev() {
+        sp.block_start[b + 1] = sp.block_start[b];
+    }
+    sp.block_start[0] = 0;
 }
 
 /// A = W Wᵀ into `a` (n × n): per block, over the pairs of rows touching it (other blocks give

@@ -4,7 +4,7 @@
 //! approach for contacts still apart, and softness (ODE's soft_cfm).
 
 use super::{ContactBlock, ProblemBuilder, RowLaw, RowOrigin};
-use crate::collision::{add_point_direction_row, tangents, Attachment, Contact};
+use crate::collision::{add_point_rates_row, point_rates, tangents, Attachment, Contact};
 use crate::data::Data;
 use crate::model::Model;
 use nalgebra::DVector;
@@ -110,10 +110,20 @@ pub fn add_contact_rows_with<'a>(
     h: f64,
     mut parameters: impl FnMut(&Contact) -> ContactParameters,
 ) {
+    let mut rates = builder.take_point_rates();
     for (i, contact) in contacts.iter().enumerate() {
         let p = parameters(contact);
         let origin = RowOrigin::Contact(first_index + i);
         let (t1, t2) = tangents(&contact.normal);
+        rates.clear();
+        for (side, point, sign) in
+            [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
+        {
+            if let Attachment::Body { multibody, body } = side {
+                let (model, data, col) = system(multibody);
+                point_rates(model, data, body, &point, sign, col, &mut rates);
+            }
+        }
         let normal_row = builder.len();
         for (r, direction) in [contact.normal, t1, t2].iter().enumerate() {
             let law = if r == 0 {
@@ -123,18 +133,12 @@ pub fn add_contact_rows_with<'a>(
             };
             let softness = if r == 0 { p.cfm / h } else { 0.0 };
             let (_, mut row) = builder.push_row(law, 0.0, softness, origin);
-            for (side, point, sign) in
-                [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
-            {
-                if let Attachment::Body { multibody, body } = side {
-                    let (model, data, col) = system(multibody);
-                    add_point_direction_row(model, data, body, &point, direction, sign, &mut row, col);
-                }
-            }
+            add_point_rates_row(&rates, direction, &mut row);
         }
         let approach = builder.row_dot(normal_row, v.as_slice());
         let target = p.target_normal_velocity(contact.distance, approach, h);
         builder.set_target(normal_row, target);
         builder.push_contact_block(ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) });
     }
+    builder.put_point_rates(rates);
 }

@@ -160,7 +160,9 @@ pub struct RowSparsity {
     pub w_values: Vec<f64>,
     /// For each (row, block) entry, the span [lo, hi) of the segment outside which W is zero.
     pub segment_span: Vec<(usize, usize)>,
-    /// Rows touching each block: `rows_of_block[block_start[b]..block_start[b + 1]]`.
+    /// Rows touching each block: `rows_of_block[block_start[b]..block_start[b + 1]]`. This
+    /// per-block index (with the two fields after it) is filled only when A is formed; a
+    /// matrix-free problem leaves `block_start` empty.
     pub rows_of_block: Vec<usize>,
     /// Offsets into `rows_of_block`, one per block plus one.
     pub block_start: Vec<usize>,
@@ -277,7 +279,10 @@ impl ConstraintProblem {
             return std::borrow::Cow::Borrowed(&self.delassus);
         }
         let mut a = DMatrix::zeros(self.rows(), self.rows());
-        assemble::delassus_from_w(&self.sparsity, &mut a);
+        // The stepping path leaves the per-block index out when A is not formed.
+        let mut sparsity = self.sparsity.clone();
+        assemble::index_rows_by_block(&mut sparsity);
+        assemble::delassus_from_w(&sparsity, &mut a);
         std::borrow::Cow::Owned(a)
     }
 

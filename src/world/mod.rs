@@ -144,7 +144,13 @@ pub struct World {
     builder: ProblemBuilder,
     problem: ConstraintProblem,
     lambda: DVector<f64>,
-    warm: HashMap<u64, f64, KeyHasher>,
+    /// Last step's row keys and impulses, in row order ([`World::warm_start`]).
+    warm_keys: Vec<u64>,
+    warm_values: Vec<f64>,
+    /// Key → position in `warm_keys`, built only in steps whose rows came in another order.
+    warm_index: HashMap<u64, usize, KeyHasher>,
+    /// This step's row keys (become `warm_keys` once solved).
+    row_keys: Vec<u64>,
     contacts: Vec<Contact>,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
@@ -180,7 +186,10 @@ impl World {
             smooth: smooth::SmoothSteppers::default(),
             problem: ConstraintProblem::default(),
             lambda: DVector::zeros(0),
-            warm: HashMap::default(),
+            warm_keys: Vec::new(),
+            warm_values: Vec::new(),
+            warm_index: HashMap::default(),
+            row_keys: Vec::new(),
             contacts: Vec::new(),
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
@@ -885,26 +894,47 @@ impl World {
         base.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ counter.0 as u64
     }
 
+    /// λ's warm start: each row's impulse of the last step, matched by its key. Rows mostly come
+    /// in the same order as last step (collision pairs and their features are enumerated in a
+    /// stable order), so keys are matched by a cursor over last step's rows; only a row that
+    /// breaks the order is looked up in an index, built at most once per step.
     fn warm_start(&mut self) {
         let n = self.problem.rows();
         if self.lambda.len() != n {
             self.lambda = DVector::zeros(n);
         }
         let mut counter = (0, u64::MAX);
-        for i in 0..n {
-            let key = self.row_key(i, &mut counter);
-            self.lambda[i] = self.warm.get(&key).copied().unwrap_or(0.0);
+        let mut keys = std::mem::take(&mut self.row_keys);
+        keys.clear();
+        keys.extend((0..n).map(|i| self.row_key(i, &mut counter)));
+        let (mut cursor, mut indexed) = (0, false);
+        for (i, key) in keys.iter().enumerate() {
+            if self.warm_keys.get(cursor) == Some(key) {
+                self.lambda[i] = self.warm_values[cursor];
+                cursor += 1;
+                continue;
+            }
+            if !indexed {
+                self.warm_index.clear();
+                self.warm_index.extend(self.warm_keys.iter().enumerate().map(|(p, k)| (*k, p)));
+                indexed = true;
+            }
+            self.lambda[i] = match self.warm_index.get(key) {
+                Some(&p) => {
+                    cursor = p + 1;
+                    self.warm_values[p]
+                }
+                None => 0.0,
+            };
         }
+        self.row_keys = keys;
     }
 
+    /// Keeps this step's impulses with their row keys for the next step's warm start.
     fn remember_impulses(&mut self) {
-        self.warm.clear();
-        let mut counter = (0, u64::MAX);
-        for i in 0..self.problem.rows() {
-            let key = self.row_key(i, &mut counter);
-            let value = self.lambda[i];
-            self.warm.insert(key, value);
-        }
+        std::mem::swap(&mut self.warm_keys, &mut self.row_keys);
+        self.warm_values.clear();
+        self.warm_values.extend_from_slice(self.lambda.as_slice());
     }
 }
 
