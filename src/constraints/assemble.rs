@@ -251,11 +251,7 @@ impl ProblemBuilder {
 
     /// J_i · v for row `i` and a velocity `v` of `nv` entries (e.g. m/s for a contact normal).
     pub fn row_dot(&self, i: usize, v: &[f64]) -> f64 {
-        self.segments(i)
-            .map(|(_, first, values)| {
-                values.iter().zip(&v[first..first + values.len()]).map(|(a, b)| a * b).sum::<f64>()
-            })
-            .sum()
+        self.segments(i).map(|(_, first, values)| dot(values, &v[first..first + values.len()])).sum()
     }
 
     /// Writes the dense Jacobian row `i` (`nv` entries) into `out`.

@@ -1,0 +1,31 @@
+"""MuJoCo's whole-step time on the peer scenes (../shared/peers/*.xml), for a same-session
+comparison with `gelenk bench world SCENE`: the host's speed varies by ±40 % between runs
+minutes apart, so figures measured at different times cannot be compared, ratios measured
+back to back can. Not part of CI (needs `pip install mujoco`).
+
+Usage: python3 benches/mujoco_peers.py ../shared/peers/box_stack10.xml ../shared/peers/humanoid_fall.xml
+
+Per scene: 5 episodes of 2500 steps from the initial state (`mj_step` with `nstep`, the loop
+runs in C), the mean µs per step of each episode and their median: the same statistic as
+gelenk's "episode mean".
+"""
+import statistics
+import sys
+import time
+
+import mujoco
+
+for path in sys.argv[1:]:
+    model = mujoco.MjModel.from_xml_path(path)
+    means = []
+    for _ in range(5):
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        start = time.perf_counter()
+        mujoco.mj_step(model, data, nstep=2500)
+        means.append((time.perf_counter() - start) / 2500 * 1e6)
+    episodes = ", ".join(f"{x:.1f}" for x in means)
+    print(
+        f"{path}: MuJoCo {mujoco.__version__}, dt = {model.opt.timestep} s: "
+        f"{statistics.median(means):.1f} µs/step (median episode mean; episodes {episodes})"
+    )
