@@ -8,6 +8,7 @@ mod chain;
 mod conic;
 mod lemke;
 mod pgs;
+mod subspace;
 pub mod residuals;
 
 pub use chain::{ChainReport, Fallback, SolverChain};

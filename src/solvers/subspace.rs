@@ -1,0 +1,458 @@
+//! Subspace minimisation for projected Gauss–Seidel (Silcowitz, Niebe and Erleben, "Projected
+//! Gauss–Seidel subspace minimization method for interactive rigid body dynamics", 2010).
+//!
+//! PGS finds the active set of a problem (which contacts press, stick or slide, which limits and
+//! motors are at a bound) in a few sweeps, but then converges on it only linearly, at a rate set
+//! by A's conditioning: a redundant contact set (four corners of a foot on the floor) at the end
+//! of a stiff chain makes that rate so close to 1 that thousands of sweeps are needed. With the
+//! active set fixed the problem is a linear system, which one dense solve settles:
+//!
+//! - equality rows `w_i = 0` with `λ_i` free: bilateral rows, unilateral rows with `λ_i > 0`,
+//!   bounded rows strictly inside their box, the normal of a pressing contact and the tangents of
+//!   a sticking one (strictly inside its cone);
+//! - a sliding contact (on the cone's boundary) keeps the direction PGS found: `λ_t = λ_n c` with
+//!   `c = λ_t / λ_n`, so its tangents drop out and enter through the normal's column
+//!   `e_n + c₁ e_t1 + c₂ e_t2`, with the normal's equation `w_n = 0`;
+//! - every other row keeps its impulse (zero, or the bound it sits at).
+//!
+//! The reduced system `K δ = −w_s` (K = rows s of (A + R) times the columns above; not symmetric
+//! when a contact slides) is solved by LU with partial pivoting of `K + εI` and iterative
+//! refinement against K: a proximal-point iteration, so that the singular K of a redundant
+//! contact set still yields a solution of the consistent system near PGS's iterate. The result
+//! is projected back onto the feasible set and taken only if it lowers the exact residual
+//! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on from it,
+//! correcting the active set if the solve changed it.
+
+use super::residuals::{norm2, residuals};
+use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
+use nalgebra::DVector;
+
+/// Largest reduced system solved (free impulses): the dense LU costs O(s³).
+pub(crate) const MAX_SUBSPACE: usize = 128;
+
+/// Proximal regularisation of the reduced solve, relative to K's largest diagonal entry.
+const PROXIMAL: f64 = 1e-10;
+
+/// Refinement steps of the proximal iteration.
+const REFINEMENTS: usize = 6;
+
+/// A contact slides when its tangential impulse is this close (relatively) to the cone.
+const ON_CONE: f64 = 1e-9;
+
+/// One free impulse of the reduced system: its equation row and its column in λ-space.
+#[derive(Clone, Copy, Debug)]
+struct Unit {
+    /// Row whose `w` is set to zero, and whose λ moves by the unit's unknown.
+    row: usize,
+    /// For a sliding contact: the tangent rows and λ_t / λ_n (they move with the normal).
+    slide: Option<(usize, usize, f64, f64)>,
+}
+
+/// Scratch space of the subspace step (kept by the PGS workspace; allocation-free once sized).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct SubspaceWorkspace {
+    units: Vec<Unit>,
+    /// Per row: whether it belongs to a contact.
+    contact_row: Vec<bool>,
+    /// A + R (row-major, n × n).
+    gram: Vec<f64>,
+    /// K (row-major, units × units) and its LU factors.
+    k: Vec<f64>,
+    lu: Vec<f64>,
+    pivots: Vec<usize>,
+    rhs: Vec<f64>,
+    x: Vec<f64>,
+    correction: Vec<f64>,
+    /// Row velocities of the current iterate.
+    w: DVector<f64>,
+    /// The projected result.
+    pub(crate) candidate: DVector<f64>,
+}
+
+impl SubspaceWorkspace {
+    /// Reserves room for a problem of `n` rows, so that the step allocates nothing later.
+    pub(crate) fn reserve(&mut self, n: usize) {
+        let s = n.min(MAX_SUBSPACE);
+        for v in [&mut self.gram, &mut self.k, &mut self.lu] {
+            v.reserve((s * s).saturating_sub(v.len()));
+        }
+        for v in [&mut self.rhs, &mut self.x, &mut self.correction] {
+            v.reserve(n.saturating_sub(v.len()));
+        }
+        self.units.reserve(n.saturating_sub(self.units.len()));
+        self.contact_row.reserve(n.saturating_sub(self.contact_row.len()));
+        self.pivots.reserve(n.saturating_sub(self.pivots.len()));
+        if self.w.len() != n {
+            self.w = DVector::zeros(n);
+            self.candidate = DVector::zeros(n);
+        }
+    }
+}
+
+/// What a subspace step did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum SubspaceOutcome {
+    /// Not attempted: pyramid friction, λ already within `good_enough`, nothing free, or too
+    /// many free impulses.
+    Skipped,
+    /// The projected solve did not lower the exact residual (which it reports).
+    Rejected(f64),
+    /// `workspace.candidate` holds the better impulses, with this exact residual.
+    Accepted(f64),
+}
+
+/// One subspace-minimisation step from `lambda` (see the module docs): on acceptance the
+/// candidate is left in `ws.candidate` for the caller to take.
+///
+/// The reduced solve is a direction, followed as far as the active set allows (a primal
+/// active-set step): when a free impulse would leave its set on the way — a pressing normal
+/// reaching zero, a sticking contact reaching its cone, a row reaching its bound — the step stops
+/// there, that impulse joins its bound (the contact now slides in the direction it arrived
+/// with), and the system is solved again, at most `MAX_ROUNDS` times. A wrong guess of PGS
+/// (all four corners of a foot sticking where two must slip) makes the system inconsistent and
+/// its solution huge along the contact set's internal-force directions, which are exactly where
+/// PGS creeps; the first blocking impulse then ends that step at the right active set.
+pub(crate) fn subspace_step(
+    problem: &ConstraintProblem,
+    lambda: &DVector<f64>,
+    ws: &mut SubspaceWorkspace,
+    good_enough: f64,
+) -> SubspaceOutcome {
+    let n = problem.rows();
+    if problem.friction != FrictionModel::Cone || n > MAX_SUBSPACE {
+        return SubspaceOutcome::Skipped;
+    }
+    ws.reserve(n);
+    let current = residuals(problem, lambda, &mut ws.w).exact();
+    if current <= good_enough {
+        return SubspaceOutcome::Skipped;
+    }
+    // (A + R) over all rows; symmetric, so each entry once.
+    ws.gram.clear();
+    ws.gram.resize(n * n, 0.0);
+    for i in 0..n {
+        for j in i..n {
+            let mut g = problem.delassus_entry(i, j);
+            if i == j {
+                g += problem.regularization[i];
+            }
+            ws.gram[i * n + j] = g;
+            ws.gram[j * n + i] = g;
+        }
+    }
+    let mut candidate = std::mem::replace(&mut ws.candidate, DVector::zeros(0));
+    candidate.copy_from(lambda);
+    let mut solved = false;
+    for round in 0..MAX_ROUNDS {
+        if round > 0 {
+            // w of the moved iterate: w += (A + R) Δλ would cost the same n² as this.
+            for i in 0..n {
+                let row = &ws.gram[i * n..(i + 1) * n];
+                ws.w[i] = problem.bias[i] + row.iter().zip(candidate.iter()).map(|(g, l)| g * l).sum::<f64>();
+            }
+        }
+        if !active_units(problem, &candidate, ws) || !reduced_solve(ws, n) {
+            break;
+        }
+        solved = true;
+        let (alpha, blocking) = step_length(problem, &candidate, ws);
+        for (unit, x) in ws.units.iter().zip(&ws.x) {
+            let dx = alpha * x;
+            candidate[unit.row] += dx;
+            if let Some((t1, t2, c1, c2)) = unit.slide {
+                candidate[t1] += c1 * dx;
+                candidate[t2] += c2 * dx;
+            }
+        }
+        match blocking {
+            Blocking::None => break,
+            // Exactly onto the bound, so that the next round classifies it there.
+            Blocking::Zero(row) => {
+                candidate[row] = 0.0;
+                if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                    let (_, t1, t2) = c.rows();
+                    candidate[t1] = 0.0;
+                    candidate[t2] = 0.0;
+                }
+            }
+            Blocking::Bound(row, value) => candidate[row] = value,
+            Blocking::Cone(_) => {}
+        }
+        project(problem, &mut candidate);
+    }
+    project(problem, &mut candidate);
+    ws.candidate = candidate;
+    if !solved {
+        return SubspaceOutcome::Skipped;
+    }
+    let reached = residuals(problem, &ws.candidate, &mut ws.w).exact();
+    if std::env::var("SM_DEBUG").is_ok() {
+        eprintln!("SM current {current:.3e} reached {reached:.3e}\n lambda {:?}\n cand {:?}", lambda.as_slice(), ws.candidate.as_slice());
+    }
+    if reached < current {
+        SubspaceOutcome::Accepted(reached)
+    } else {
+        SubspaceOutcome::Rejected(reached)
+    }
+}
+
+/// Rounds of solve-and-block per subspace step.
+const MAX_ROUNDS: usize = 8;
+
+/// What ends a step early.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Blocking {
+    /// Nothing: the full step is feasible.
+    None,
+    /// The impulse of this row (a normal: with its tangents) reaches zero.
+    Zero(usize),
+    /// This row reaches this bound.
+    Bound(usize, f64),
+    /// The sticking contact whose normal is this row reaches its cone (the projection puts it
+    /// exactly there).
+    Cone(usize),
+}
+
+/// K and −w over `ws.units` from the Gram matrix (n × n), solved into `ws.x`; false if the
+/// factorisation fails.
+fn reduced_solve(ws: &mut SubspaceWorkspace, n: usize) -> bool {
+    let s = ws.units.len();
+    if s > MAX_SUBSPACE {
+        return false;
+    }
+    // K[u][v] = e_row(u)ᵀ (A + R) column(v).
+    ws.k.clear();
+    ws.k.resize(s * s, 0.0);
+    ws.rhs.clear();
+    let mut largest: f64 = 0.0;
+    for u in 0..s {
+        let row = &ws.gram[ws.units[u].row * n..(ws.units[u].row + 1) * n];
+        for v in 0..s {
+            let unit = ws.units[v];
+            let mut k = row[unit.row];
+            if let Some((t1, t2, c1, c2)) = unit.slide {
+                k += c1 * row[t1] + c2 * row[t2];
+            }
+            ws.k[u * s + v] = k;
+        }
+        largest = largest.max(ws.k[u * s + u].abs());
+        ws.rhs.push(-ws.w[ws.units[u].row]);
+    }
+    if largest <= 0.0 || !largest.is_finite() {
+        return false;
+    }
+    ws.lu.clear();
+    ws.lu.extend_from_slice(&ws.k);
+    let epsilon = PROXIMAL * largest;
+    for u in 0..s {
+        ws.lu[u * s + u] += epsilon;
+    }
+    if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
+        return false;
+    }
+    // Proximal iteration x ← x + (K + εI)⁻¹ (r − K x).
+    ws.x.clear();
+    ws.x.resize(s, 0.0);
+    for _ in 0..REFINEMENTS {
+        ws.correction.clear();
+        for u in 0..s {
+            let kx: f64 = ws.k[u * s..(u + 1) * s].iter().zip(&ws.x).map(|(k, x)| k * x).sum();
+            ws.correction.push(ws.rhs[u] - kx);
+        }
+        lu_solve(&ws.lu, &ws.pivots, s, &mut ws.correction);
+        for (x, d) in ws.x.iter_mut().zip(&ws.correction) {
+            *x += d;
+        }
+    }
+    ws.x.iter().all(|x| x.is_finite())
+}
+
+/// The longest step α ≤ 1 along `ws.x` that keeps every free impulse in its set, and what
+/// blocks it.
+fn step_length(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &SubspaceWorkspace) -> (f64, Blocking) {
+    let (mut alpha, mut blocking) = (1.0, Blocking::None);
+    let mut limit = |a: f64, b: Blocking| {
+        if a < alpha {
+            alpha = a.max(0.0);
+            blocking = b;
+        }
+    };
+    for (k, (unit, &x)) in ws.units.iter().zip(&ws.x).enumerate() {
+        let (row, l) = (unit.row, lambda[unit.row]);
+        match problem.laws[row] {
+            RowLaw::Unilateral => {
+                if x < 0.0 {
+                    limit(l / -x, Blocking::Zero(row));
+                }
+                // A sticking contact: its tangents are the next units (see `active_units`).
+                if unit.slide.is_none() {
+                    if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                        let (_, t1, t2) = c.rows();
+                        let mut d = [0.0; 2];
+                        for (j, t) in [t1, t2].into_iter().enumerate() {
+                            if let Some(p) = ws.units[k + 1..].iter().take(2).position(|u| u.row == t) {
+                                d[j] = ws.x[k + 1 + p];
+                            }
+                        }
+                        let scaled = |v: f64, mu: f64| if mu > 0.0 { v / mu } else { 0.0 };
+                        let s0 = [scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2)];
+                        let ds = [scaled(d[0], c.mu), scaled(d[1], c.mu2)];
+                        // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
+                        let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
+                        let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
+                        let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
+                        if let Some(root) = first_positive_root(qa, qb, qc) {
+                            limit(root, Blocking::Cone(row));
+                        }
+                    }
+                }
+            }
+            RowLaw::Bounded { lo, hi } => {
+                if x < 0.0 && lo.is_finite() {
+                    limit((l - lo) / -x, Blocking::Bound(row, lo));
+                } else if x > 0.0 && hi.is_finite() {
+                    limit((hi - l) / x, Blocking::Bound(row, hi));
+                }
+            }
+            RowLaw::Bilateral | RowLaw::Friction { .. } => {}
+        }
+    }
+    (alpha, blocking)
+}
+
+/// The smallest positive root of `a t² + b t + c` with `c < 0` (the path starts inside), if any.
+fn first_positive_root(a: f64, b: f64, c: f64) -> Option<f64> {
+    if c >= 0.0 {
+        return Some(0.0);
+    }
+    if a.abs() <= 1e-300 {
+        return (b > 0.0).then(|| -c / b);
+    }
+    let disc = b * b - 4.0 * a * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    // Stable roots: q = −(b + sign(b) √disc)/2, t = q/a and c/q.
+    let q = -0.5 * (b + b.signum() * sq);
+    let roots = [if q != 0.0 { c / q } else { f64::INFINITY }, q / a];
+    roots.into_iter().filter(|t| *t > 0.0 && t.is_finite()).fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+}
+
+/// Fills `ws.units` with PGS's active set at `lambda` (a sticking contact's normal is followed
+/// by its tangents); false if nothing is free.
+fn active_units(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &mut SubspaceWorkspace) -> bool {
+    let n = problem.rows();
+    ws.units.clear();
+    ws.contact_row.clear();
+    ws.contact_row.resize(n, false);
+    for c in &problem.contacts {
+        let (nr, t1, t2) = c.rows();
+        ws.contact_row[nr] = true;
+        ws.contact_row[t1] = true;
+        ws.contact_row[t2] = true;
+        let normal = lambda[nr];
+        if normal <= 0.0 {
+            continue; // Separating: every impulse stays zero.
+        }
+        let scaled = |l: f64, mu: f64| if mu > 0.0 { l / mu } else { 0.0 };
+        let reach = norm2(scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2));
+        if c.mu.max(c.mu2) > 0.0 && reach >= (1.0 - ON_CONE) * normal {
+            ws.units.push(Unit { row: nr, slide: Some((t1, t2, lambda[t1] / normal, lambda[t2] / normal)) });
+        } else {
+            ws.units.push(Unit { row: nr, slide: None });
+            for (t, mu) in [(t1, c.mu), (t2, c.mu2)] {
+                if mu > 0.0 {
+                    ws.units.push(Unit { row: t, slide: None });
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        if ws.contact_row[i] {
+            continue;
+        }
+        let free = match problem.laws[i] {
+            RowLaw::Bilateral => true,
+            RowLaw::Unilateral => lambda[i] > 0.0,
+            RowLaw::Bounded { lo, hi } => lo < lambda[i] && lambda[i] < hi,
+            RowLaw::Friction { .. } => false, // Owned by a contact (checked by `check_problem`).
+        };
+        if free {
+            ws.units.push(Unit { row: i, slide: None });
+        }
+    }
+    !ws.units.is_empty()
+}
+
+/// Projects λ onto the feasible set: λ ≥ 0 on unilateral rows, into the box on bounded rows,
+/// into the cone of the (projected) normal impulse on contacts.
+fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
+    for i in 0..problem.rows() {
+        match problem.laws[i] {
+            RowLaw::Unilateral => lambda[i] = lambda[i].max(0.0),
+            RowLaw::Bounded { lo, hi } => lambda[i] = lambda[i].clamp(lo, hi),
+            RowLaw::Bilateral | RowLaw::Friction { .. } => {}
+        }
+    }
+    for c in &problem.contacts {
+        let (nr, t1, t2) = c.rows();
+        let bound = lambda[nr];
+        let s1 = if c.mu > 0.0 { lambda[t1] / c.mu } else { 0.0 };
+        let s2 = if c.mu2 > 0.0 { lambda[t2] / c.mu2 } else { 0.0 };
+        let reach = norm2(s1, s2);
+        let k = if reach > bound { if reach > 0.0 { bound / reach } else { 0.0 } } else { 1.0 };
+        lambda[t1] = c.mu * s1 * k;
+        lambda[t2] = c.mu2 * s2 * k;
+    }
+}
+
+/// In-place LU factorisation with partial pivoting of the row-major s × s matrix `a`; false if
+/// a pivot vanishes.
+fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
+    pivots.clear();
+    for col in 0..s {
+        let (mut best, mut best_abs) = (col, a[col * s + col].abs());
+        for r in col + 1..s {
+            let v = a[r * s + col].abs();
+            if v > best_abs {
+                (best, best_abs) = (r, v);
+            }
+        }
+        if best_abs <= 0.0 || !best_abs.is_finite() {
+            return false;
+        }
+        pivots.push(best);
+        if best != col {
+            for j in 0..s {
+                a.swap(col * s + j, best * s + j);
+            }
+        }
+        let pivot = a[col * s + col];
+        for r in col + 1..s {
+            let factor = a[r * s + col] / pivot;
+            a[r * s + col] = factor;
+            if factor != 0.0 {
+                for j in col + 1..s {
+                    a[r * s + j] -= factor * a[col * s + j];
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Solves with the factors of [`lu_factor`], in place.
+fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
+    for (col, &p) in pivots.iter().enumerate() {
+        x.swap(col, p);
+    }
+    for r in 0..s {
+        let sum: f64 = lu[r * s..r * s + r].iter().zip(&x[..r]).map(|(l, x)| l * x).sum();
+        x[r] -= sum;
+    }
+    for r in (0..s).rev() {
+        let sum: f64 = lu[r * s + r + 1..(r + 1) * s].iter().zip(&x[r + 1..]).map(|(u, x)| u * x).sum();
+        x[r] = (x[r] - sum) / lu[r * s + r];
+    }
+}
