@@ -39,13 +39,51 @@ const REFINEMENTS: usize = 6;
 /// A contact slides when its tangential impulse is this close (relatively) to the cone.
 const ON_CONE: f64 = 1e-9;
 
-/// One free impulse of the reduced system: its equation row and its column in λ-space.
+/// One unknown of the reduced system.
 #[derive(Clone, Copy, Debug)]
-struct Unit {
-    /// Row whose `w` is set to zero, and whose λ moves by the unit's unknown.
-    row: usize,
-    /// For a sliding contact: the tangent rows and λ_t / λ_n (they move with the normal).
-    slide: Option<(usize, usize, f64, f64)>,
+enum Unit {
+    /// λ of this row is free; its equation is `w_row = 0`.
+    Row(usize),
+    /// The normal impulse of a sliding contact, its tangents following on the cone:
+    /// `λ_t = λ_n (μ₁ cos θ, μ₂ sin θ)`; its equation is `w_n = 0`.
+    Slide(Sliding),
+    /// The direction θ of the same sliding contact (always right after its `Slide`); its
+    /// equation is that the scaled slip `m = (μ₁ w₁, μ₂ w₂)` be parallel to (cos θ, sin θ):
+    /// `g = −sin θ m₁ + cos θ m₂ = 0` (maximum dissipation when they are opposite).
+    Angle(Sliding),
+}
+
+/// A sliding contact's rows, coefficients, normal impulse and direction (in λ_t/μ coordinates).
+#[derive(Clone, Copy, Debug)]
+struct Sliding {
+    normal: usize,
+    t1: usize,
+    t2: usize,
+    mu: [f64; 2],
+    lambda_n: f64,
+    cos: f64,
+    sin: f64,
+}
+
+impl Unit {
+    /// λ moves by the unknown times Σ coefficient · e_row (a linearisation for `Angle`).
+    fn column(&self) -> [(usize, f64); 3] {
+        match *self {
+            Unit::Row(i) => [(i, 1.0), (i, 0.0), (i, 0.0)],
+            Unit::Slide(c) => [(c.normal, 1.0), (c.t1, c.mu[0] * c.cos), (c.t2, c.mu[1] * c.sin)],
+            Unit::Angle(c) => {
+                [(c.t1, -c.lambda_n * c.mu[0] * c.sin), (c.t2, c.lambda_n * c.mu[1] * c.cos), (c.t2, 0.0)]
+            }
+        }
+    }
+    /// The equation Σ coefficient · w_row (+ the explicit θ-derivative on the diagonal).
+    fn equation(&self) -> [(usize, f64); 2] {
+        match *self {
+            Unit::Row(i) => [(i, 1.0), (i, 0.0)],
+            Unit::Slide(c) => [(c.normal, 1.0), (c.normal, 0.0)],
+            Unit::Angle(c) => [(c.t1, -c.sin * c.mu[0]), (c.t2, c.cos * c.mu[1])],
+        }
+    }
 }
 
 /// Scratch space of the subspace step (kept by the PGS workspace; allocation-free once sized).
@@ -148,24 +186,39 @@ pub(crate) fn subspace_step(
             // w of the moved iterate: w += (A + R) Δλ would cost the same n² as this.
             for i in 0..n {
                 let row = &ws.gram[i * n..(i + 1) * n];
-                ws.w[i] = problem.bias[i] + row.iter().zip(candidate.iter()).map(|(g, l)| g * l).sum::<f64>();
+                ws.w[i] = problem.bias[i]
+                    + row.iter().zip(candidate.iter()).map(|(g, l)| g * l).sum::<f64>();
             }
         }
-        if !active_units(problem, &candidate, ws) || !reduced_solve(ws, n) {
+        if !active_units(problem, &mut candidate, ws) || !reduced_solve(ws, n) {
             break;
         }
         solved = true;
         let (alpha, blocking) = step_length(problem, &candidate, ws);
-        for (unit, x) in ws.units.iter().zip(&ws.x) {
-            let dx = alpha * x;
-            candidate[unit.row] += dx;
-            if let Some((t1, t2, c1, c2)) = unit.slide {
-                candidate[t1] += c1 * dx;
-                candidate[t2] += c2 * dx;
+        let mut turn: f64 = 0.0;
+        for (k, (unit, x)) in ws.units.iter().zip(&ws.x).enumerate() {
+            match *unit {
+                Unit::Row(i) => candidate[i] += alpha * x,
+                Unit::Slide(c) => {
+                    let normal = (c.lambda_n + alpha * x).max(0.0);
+                    let angle = match ws.units.get(k + 1) {
+                        Some(Unit::Angle(_)) => alpha * ws.x[k + 1],
+                        _ => 0.0,
+                    };
+                    turn = turn.max(angle.abs());
+                    let (sin_d, cos_d) = angle.sin_cos();
+                    let (cos, sin) = (c.cos * cos_d - c.sin * sin_d, c.sin * cos_d + c.cos * sin_d);
+                    candidate[c.normal] = normal;
+                    candidate[c.t1] = normal * c.mu[0] * cos;
+                    candidate[c.t2] = normal * c.mu[1] * sin;
+                }
+                Unit::Angle(_) => {}
             }
         }
         match blocking {
-            Blocking::None => break,
+            // Exact on this active set (up to the direction's Newton step).
+            Blocking::None if turn <= NEWTON_TURN => break,
+            Blocking::None | Blocking::Turn => {}
             // Exactly onto the bound, so that the next round classifies it there.
             Blocking::Zero(row) => {
                 candidate[row] = 0.0;
@@ -176,7 +229,7 @@ pub(crate) fn subspace_step(
                 }
             }
             Blocking::Bound(row, value) => candidate[row] = value,
-            Blocking::Cone(_) => {}
+            Blocking::Cone => {}
         }
         project(problem, &mut candidate);
     }
@@ -186,9 +239,6 @@ pub(crate) fn subspace_step(
         return SubspaceOutcome::Skipped;
     }
     let reached = residuals(problem, &ws.candidate, &mut ws.w).exact();
-    if std::env::var("SM_DEBUG").is_ok() {
-        eprintln!("SM current {current:.3e} reached {reached:.3e}\n lambda {:?}\n cand {:?}", lambda.as_slice(), ws.candidate.as_slice());
-    }
     if reached < current {
         SubspaceOutcome::Accepted(reached)
     } else {
@@ -196,8 +246,14 @@ pub(crate) fn subspace_step(
     }
 }
 
-/// Rounds of solve-and-block per subspace step.
-const MAX_ROUNDS: usize = 8;
+/// Rounds of solve-and-block (and Newton steps on sliding directions) per subspace step.
+const MAX_ROUNDS: usize = 16;
+
+/// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
+const MAX_TURN: f64 = 0.5;
+
+/// A round whose full step turns no direction more than this (rad) ends the step.
+const NEWTON_TURN: f64 = 1e-10;
 
 /// What ends a step early.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -208,35 +264,43 @@ enum Blocking {
     Zero(usize),
     /// This row reaches this bound.
     Bound(usize, f64),
-    /// The sticking contact whose normal is this row reaches its cone (the projection puts it
-    /// exactly there).
-    Cone(usize),
+    /// A sticking contact reaches its cone (the projection puts it exactly there).
+    Cone,
+    /// A sliding direction would turn more than `MAX_TURN`.
+    Turn,
 }
 
-/// K and −w over `ws.units` from the Gram matrix (n × n), solved into `ws.x`; false if the
-/// factorisation fails.
+/// K and −g over `ws.units` from the Gram matrix (n × n) and `ws.w`, solved into `ws.x`; false
+/// if the factorisation fails.
 fn reduced_solve(ws: &mut SubspaceWorkspace, n: usize) -> bool {
     let s = ws.units.len();
     if s > MAX_SUBSPACE {
         return false;
     }
-    // K[u][v] = e_row(u)ᵀ (A + R) column(v).
     ws.k.clear();
     ws.k.resize(s * s, 0.0);
     ws.rhs.clear();
     let mut largest: f64 = 0.0;
     for u in 0..s {
-        let row = &ws.gram[ws.units[u].row * n..(ws.units[u].row + 1) * n];
+        let equation = ws.units[u].equation();
         for v in 0..s {
-            let unit = ws.units[v];
-            let mut k = row[unit.row];
-            if let Some((t1, t2, c1, c2)) = unit.slide {
-                k += c1 * row[t1] + c2 * row[t2];
+            let column = ws.units[v].column();
+            let mut k = 0.0;
+            for &(r, a) in &equation {
+                if a != 0.0 {
+                    let row = &ws.gram[r * n..(r + 1) * n];
+                    k += a * column.iter().map(|&(c, b)| b * row[c]).sum::<f64>();
+                }
             }
             ws.k[u * s + v] = k;
         }
+        let g: f64 = equation.iter().map(|&(r, a)| a * ws.w[r]).sum();
+        if let Unit::Angle(c) = ws.units[u] {
+            // ∂g/∂θ at fixed w: −(cos θ m₁ + sin θ m₂) (= ‖m‖ when friction opposes slip).
+            ws.k[u * s + u] -= c.cos * c.mu[0] * ws.w[c.t1] + c.sin * c.mu[1] * ws.w[c.t2];
+        }
         largest = largest.max(ws.k[u * s + u].abs());
-        ws.rhs.push(-ws.w[ws.units[u].row]);
+        ws.rhs.push(-g);
     }
     if largest <= 0.0 || !largest.is_finite() {
         return false;
@@ -278,43 +342,57 @@ fn step_length(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &Subspace
         }
     };
     for (k, (unit, &x)) in ws.units.iter().zip(&ws.x).enumerate() {
-        let (row, l) = (unit.row, lambda[unit.row]);
-        match problem.laws[row] {
-            RowLaw::Unilateral => {
+        match *unit {
+            Unit::Slide(c) => {
                 if x < 0.0 {
-                    limit(l / -x, Blocking::Zero(row));
+                    limit(c.lambda_n / -x, Blocking::Zero(c.normal));
                 }
-                // A sticking contact: its tangents are the next units (see `active_units`).
-                if unit.slide.is_none() {
-                    if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
-                        let (_, t1, t2) = c.rows();
-                        let mut d = [0.0; 2];
-                        for (j, t) in [t1, t2].into_iter().enumerate() {
-                            if let Some(p) = ws.units[k + 1..].iter().take(2).position(|u| u.row == t) {
-                                d[j] = ws.x[k + 1 + p];
+            }
+            Unit::Angle(_) => {
+                if x.abs() > MAX_TURN {
+                    limit(MAX_TURN / x.abs(), Blocking::Turn);
+                }
+            }
+            Unit::Row(row) => {
+                let l = lambda[row];
+                match problem.laws[row] {
+                    RowLaw::Unilateral => {
+                        if x < 0.0 {
+                            limit(l / -x, Blocking::Zero(row));
+                        }
+                        // A sticking contact: its tangents are the next units (see `active_units`).
+                        if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                            let (_, t1, t2) = c.rows();
+                            let mut d = [0.0; 2];
+                            for (unit, &dx) in ws.units[k + 1..].iter().zip(&ws.x[k + 1..]).take(2) {
+                                match *unit {
+                                    Unit::Row(t) if t == t1 => d[0] = dx,
+                                    Unit::Row(t) if t == t2 => d[1] = dx,
+                                    _ => {}
+                                }
+                            }
+                            let scaled = |v: f64, mu: f64| if mu > 0.0 { v / mu } else { 0.0 };
+                            let s0 = [scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2)];
+                            let ds = [scaled(d[0], c.mu), scaled(d[1], c.mu2)];
+                            // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
+                            let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
+                            let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
+                            let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
+                            if let Some(root) = first_positive_root(qa, qb, qc) {
+                                limit(root, Blocking::Cone);
                             }
                         }
-                        let scaled = |v: f64, mu: f64| if mu > 0.0 { v / mu } else { 0.0 };
-                        let s0 = [scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2)];
-                        let ds = [scaled(d[0], c.mu), scaled(d[1], c.mu2)];
-                        // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
-                        let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
-                        let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
-                        let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
-                        if let Some(root) = first_positive_root(qa, qb, qc) {
-                            limit(root, Blocking::Cone(row));
+                    }
+                    RowLaw::Bounded { lo, hi } => {
+                        if x < 0.0 && lo.is_finite() {
+                            limit((l - lo) / -x, Blocking::Bound(row, lo));
+                        } else if x > 0.0 && hi.is_finite() {
+                            limit((hi - l) / x, Blocking::Bound(row, hi));
                         }
                     }
+                    RowLaw::Bilateral | RowLaw::Friction { .. } => {}
                 }
             }
-            RowLaw::Bounded { lo, hi } => {
-                if x < 0.0 && lo.is_finite() {
-                    limit((l - lo) / -x, Blocking::Bound(row, lo));
-                } else if x > 0.0 && hi.is_finite() {
-                    limit((hi - l) / x, Blocking::Bound(row, hi));
-                }
-            }
-            RowLaw::Bilateral | RowLaw::Friction { .. } => {}
         }
     }
     (alpha, blocking)
@@ -340,8 +418,9 @@ fn first_positive_root(a: f64, b: f64, c: f64) -> Option<f64> {
 }
 
 /// Fills `ws.units` with PGS's active set at `lambda` (a sticking contact's normal is followed
-/// by its tangents); false if nothing is free.
-fn active_units(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &mut SubspaceWorkspace) -> bool {
+/// by its tangents, a sliding one's by its direction, whose tangents it puts exactly on the
+/// cone); false if nothing is free.
+fn active_units(problem: &ConstraintProblem, lambda: &mut DVector<f64>, ws: &mut SubspaceWorkspace) -> bool {
     let n = problem.rows();
     ws.units.clear();
     ws.contact_row.clear();
@@ -356,14 +435,23 @@ fn active_units(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &mut Sub
             continue; // Separating: every impulse stays zero.
         }
         let scaled = |l: f64, mu: f64| if mu > 0.0 { l / mu } else { 0.0 };
-        let reach = norm2(scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2));
-        if c.mu.max(c.mu2) > 0.0 && reach >= (1.0 - ON_CONE) * normal {
-            ws.units.push(Unit { row: nr, slide: Some((t1, t2, lambda[t1] / normal, lambda[t2] / normal)) });
+        let (s1, s2) = (scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2));
+        let reach = norm2(s1, s2);
+        if c.mu.max(c.mu2) > 0.0 && reach > 0.0 && reach >= (1.0 - ON_CONE) * normal {
+            let (cos, sin) = (s1 / reach, s2 / reach);
+            lambda[t1] = normal * c.mu * cos;
+            lambda[t2] = normal * c.mu2 * sin;
+            let sliding = Sliding { normal: nr, t1, t2, mu: [c.mu, c.mu2], lambda_n: normal, cos, sin };
+            ws.units.push(Unit::Slide(sliding));
+            // With one coefficient zero the direction is only a sign.
+            if c.mu > 0.0 && c.mu2 > 0.0 {
+                ws.units.push(Unit::Angle(sliding));
+            }
         } else {
-            ws.units.push(Unit { row: nr, slide: None });
+            ws.units.push(Unit::Row(nr));
             for (t, mu) in [(t1, c.mu), (t2, c.mu2)] {
                 if mu > 0.0 {
-                    ws.units.push(Unit { row: t, slide: None });
+                    ws.units.push(Unit::Row(t));
                 }
             }
         }
@@ -379,7 +467,7 @@ fn active_units(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &mut Sub
             RowLaw::Friction { .. } => false, // Owned by a contact (checked by `check_problem`).
         };
         if free {
-            ws.units.push(Unit { row: i, slide: None });
+            ws.units.push(Unit::Row(i));
         }
     }
     !ws.units.is_empty()
