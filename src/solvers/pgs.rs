@@ -14,6 +14,9 @@ use nalgebra::DVector;
 /// pay for one.
 const SUBSPACE_PERIOD: usize = 8;
 
+/// The first subspace step comes once the sweeps have cost 1/this of its estimated cost.
+const SUBSPACE_COST_SHARE: usize = 4;
+
 /// Projected Gauss–Seidel.
 #[derive(Clone, Debug)]
 pub struct PgsSolver {
@@ -181,6 +184,15 @@ impl ConstraintSolver for PgsSolver {
         }
         let mut last_gradient2 = 0.0;
         let mut sweeps = 0;
+        // A sweep costs two passes over W's non-zeros (or A's rows); a subspace step up to a
+        // dense LU of n unknowns per round plus A over the rows. The first step waits until
+        // the sweeps have cost a fraction of that (problems that converge sooner never pay for
+        // it), the next ones come at doubling sweep counts, and one always comes after the last
+        // sweep of an unconverged solve.
+        let sweep_cost = if sparse { 2 * span_total } else { n * n }.max(1);
+        let subspace_cost = n * n * n / 3 + if sparse { n * span_total } else { n * n };
+        let mut next_subspace =
+            self.subspace_period.max(1).max(subspace_cost.div_ceil(SUBSPACE_COST_SHARE * sweep_cost));
         for _ in 0..self.iterations {
             sweeps += 1;
             if self.accelerate {
@@ -275,8 +287,8 @@ impl ConstraintSolver for PgsSolver {
                     direction[i] = lambda[i] - previous[i];
                 }
             }
-            let period = self.subspace_period.max(1);
-            if self.subspace && (sweeps % period == 0 || sweeps == self.iterations) {
+            if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
+                next_subspace = 2 * sweeps;
                 let ws = &mut self.workspace.subspace;
                 if let SubspaceOutcome::Accepted(reached) = subspace_step(problem, lambda, ws, self.tolerance) {
                     lambda.copy_from(&ws.candidate);

@@ -34,7 +34,7 @@ pub(crate) const MAX_SUBSPACE: usize = 128;
 const PROXIMAL: f64 = 1e-10;
 
 /// Refinement steps of the proximal iteration.
-const REFINEMENTS: usize = 6;
+const REFINEMENTS: usize = 3;
 
 /// A contact slides when its tangential impulse is this close (relatively) to the cone.
 const ON_CONE: f64 = 1e-9;
