@@ -92,7 +92,16 @@ pub(crate) struct SubspaceWorkspace {
     units: Vec<Unit>,
     /// Per row: whether it belongs to a contact.
     contact_row: Vec<bool>,
-    /// A + R (row-major, n × n).
+    /// Per row: its index in `rows`, or `usize::MAX`.
+    local: Vec<usize>,
+    /// The rows the units touch (the only ones whose λ moves or whose w is read).
+    rows: Vec<usize>,
+    /// λ and w of those rows at the start.
+    start: Vec<f64>,
+    w_start: Vec<f64>,
+    /// Their rows of W (dense, rows × nv) when A is formed from W here.
+    w_rows: Vec<f64>,
+    /// A + R over those rows (row-major).
     gram: Vec<f64>,
     /// K (row-major, units × units) and its LU factors.
     k: Vec<f64>,
@@ -119,6 +128,11 @@ impl SubspaceWorkspace {
         }
         self.units.reserve(n.saturating_sub(self.units.len()));
         self.contact_row.reserve(n.saturating_sub(self.contact_row.len()));
+        for v in [&mut self.start, &mut self.w_start] {
+            v.reserve(n.saturating_sub(v.len()));
+        }
+        self.local.reserve(n.saturating_sub(self.local.len()));
+        self.rows.reserve(n.saturating_sub(self.rows.len()));
         self.pivots.reserve(n.saturating_sub(self.pivots.len()));
         if self.w.len() != n {
             self.w = DVector::zeros(n);
@@ -165,32 +179,50 @@ pub(crate) fn subspace_step(
     if current <= good_enough {
         return SubspaceOutcome::Skipped;
     }
-    // (A + R) over all rows; symmetric, so each entry once.
-    ws.gram.clear();
-    ws.gram.resize(n * n, 0.0);
-    for i in 0..n {
-        for j in i..n {
-            let mut g = problem.delassus_entry(i, j);
-            if i == j {
-                g += problem.regularization[i];
-            }
-            ws.gram[i * n + j] = g;
-            ws.gram[j * n + i] = g;
-        }
-    }
     let mut candidate = std::mem::replace(&mut ws.candidate, DVector::zeros(0));
     candidate.copy_from(lambda);
-    let mut solved = false;
-    for round in 0..MAX_ROUNDS {
-        if round > 0 {
-            // w of the moved iterate: w += (A + R) Δλ would cost the same n² as this.
-            for i in 0..n {
-                let row = &ws.gram[i * n..(i + 1) * n];
-                ws.w[i] = problem.bias[i]
-                    + row.iter().zip(candidate.iter()).map(|(g, l)| g * l).sum::<f64>();
+    // NNCG's extrapolation may have left the feasible set.
+    project(problem, &mut candidate);
+    if !active_units(problem, &mut candidate, ws) {
+        ws.candidate = candidate;
+        return SubspaceOutcome::Skipped;
+    }
+    problem.velocities(&candidate, &mut ws.w);
+    // Only the rows the units touch move or are read: A + R over them, w kept up to date
+    // from their changes (the other rows' λ stay as they are).
+    ws.local.clear();
+    ws.local.resize(n, usize::MAX);
+    ws.rows.clear();
+    for unit in &ws.units {
+        for r in unit.column().map(|(r, _)| r).into_iter().chain(unit.equation().map(|(r, _)| r)) {
+            if ws.local[r] == usize::MAX {
+                ws.local[r] = ws.rows.len();
+                ws.rows.push(r);
             }
         }
-        if !active_units(problem, &mut candidate, ws) || !reduced_solve(ws, n) {
+    }
+    fill_gram(problem, ws);
+    let m = ws.rows.len();
+    ws.start.clear();
+    ws.start.extend(ws.rows.iter().map(|&r| candidate[r]));
+    ws.w_start.clear();
+    ws.w_start.extend(ws.rows.iter().map(|&r| ws.w[r]));
+    let mut solved = false;
+    for round in 0..MAX_ROUNDS {
+        // The units only lose rows between rounds (an impulse reaching its bound leaves them),
+        // so the first round's rows cover every later one.
+        if round > 0 {
+            for a in 0..m {
+                let g = &ws.gram[a * m..(a + 1) * m];
+                let change: f64 =
+                    g.iter().zip(&ws.rows).zip(&ws.start).map(|((g, &r), l0)| g * (candidate[r] - l0)).sum();
+                ws.w[ws.rows[a]] = ws.w_start[a] + change;
+            }
+            if !active_units(problem, &mut candidate, ws) {
+                break;
+            }
+        }
+        if !reduced_solve(ws) {
             break;
         }
         solved = true;
@@ -246,6 +278,46 @@ pub(crate) fn subspace_step(
     }
 }
 
+/// A + R over `ws.rows` into `ws.gram`: from W's dense rows (W Wᵀ) when A is matrix-free
+/// and W's rows are dense enough for that to be cheaper than entry by entry (one branched
+/// multibody: a ragdoll, a humanoid), else entry by entry.
+fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
+    let m = ws.rows.len();
+    ws.gram.clear();
+    ws.gram.resize(m * m, 0.0);
+    let sp = &problem.sparsity;
+    let nv = sp.nv;
+    let span_total: usize = ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
+    if problem.is_matrix_free() && m > 0 && nv <= 2 * span_total / m {
+        ws.w_rows.clear();
+        ws.w_rows.resize(m * nv, 0.0);
+        for (a, &r) in ws.rows.iter().enumerate() {
+            for (col, w) in sp.row_spans(r) {
+                ws.w_rows[a * nv + col..a * nv + col + w.len()].copy_from_slice(w);
+            }
+        }
+        for a in 0..m {
+            let wa = &ws.w_rows[a * nv..(a + 1) * nv];
+            for b in a..m {
+                let g: f64 = wa.iter().zip(&ws.w_rows[b * nv..(b + 1) * nv]).map(|(x, y)| x * y).sum();
+                ws.gram[a * m + b] = g;
+                ws.gram[b * m + a] = g;
+            }
+        }
+    } else {
+        for a in 0..m {
+            for b in a..m {
+                let g = problem.delassus_entry(ws.rows[a], ws.rows[b]);
+                ws.gram[a * m + b] = g;
+                ws.gram[b * m + a] = g;
+            }
+        }
+    }
+    for (a, &r) in ws.rows.iter().enumerate() {
+        ws.gram[a * m + a] += problem.regularization[r];
+    }
+}
+
 /// Rounds of solve-and-block (and Newton steps on sliding directions) per subspace step.
 const MAX_ROUNDS: usize = 16;
 
@@ -270,10 +342,11 @@ enum Blocking {
     Turn,
 }
 
-/// K and −g over `ws.units` from the Gram matrix (n × n) and `ws.w`, solved into `ws.x`; false
+/// K and −g over `ws.units` from the Gram matrix over `ws.rows` and `ws.w`, solved into `ws.x`; false
 /// if the factorisation fails.
-fn reduced_solve(ws: &mut SubspaceWorkspace, n: usize) -> bool {
+fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     let s = ws.units.len();
+    let m = ws.rows.len();
     if s > MAX_SUBSPACE {
         return false;
     }
@@ -288,8 +361,9 @@ fn reduced_solve(ws: &mut SubspaceWorkspace, n: usize) -> bool {
             let mut k = 0.0;
             for &(r, a) in &equation {
                 if a != 0.0 {
-                    let row = &ws.gram[r * n..(r + 1) * n];
-                    k += a * column.iter().map(|&(c, b)| b * row[c]).sum::<f64>();
+                    let row = &ws.gram[ws.local[r] * m..(ws.local[r] + 1) * m];
+                    // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
+                    k += a * column.iter().filter(|(_, b)| *b != 0.0).map(|&(c, b)| b * row[ws.local[c]]).sum::<f64>();
                 }
             }
             ws.k[u * s + v] = k;
