@@ -8,8 +8,8 @@ mod chain;
 mod conic;
 mod lemke;
 mod pgs;
-mod subspace;
 pub mod residuals;
+mod subspace;
 
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};

@@ -5,9 +5,9 @@
 //! from the impulses passed in (the last step's, matched by the caller).
 
 use super::residuals::{norm2, pyramid_facet};
+use super::subspace::{subspace_step, SubspaceOutcome, SubspaceWorkspace};
 use super::{check_problem, ConstraintSolver, SolveInfo, SolverError};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
-use super::subspace::{subspace_step, SubspaceOutcome, SubspaceWorkspace};
 use nalgebra::DVector;
 
 /// Default sweeps between subspace steps: long enough that problems PGS settles quickly never
@@ -35,16 +35,20 @@ pub struct PgsSolver {
     /// restart when the change grows. Long chains, piles and high mass ratios, where plain
     /// sweeps stall, converge in a fraction of the sweeps; each sweep costs a little more.
     pub accelerate: bool,
-    /// Subspace minimisation (Silcowitz, Niebe and Erleben, 2010; `solvers/subspace.rs`):
-    /// every `subspace_period` sweeps, and after the last, fix the active set the sweeps found
-    /// (pressing, sticking, sliding contacts, rows at a bound) and solve the remaining linear
-    /// system exactly with a dense LU; the projected result replaces the iterate only if it
-    /// lowers the exact residual ([`super::Residuals::exact`]). Redundant contact sets on stiff
-    /// chains, where sweeps converge at a rate near 1, are then solved in a few sweeps. Costs
-    /// nothing on problems that converge within `subspace_period` sweeps. Cone friction only
-    /// (skipped with a pyramid); at most 128 free impulses.
+    /// Subspace minimisation (Silcowitz, Niebe and Erleben, "Projected Gauss–Seidel subspace
+    /// minimization method for interactive rigid body dynamics", 2010; `solvers/subspace.rs`):
+    /// fix the active set the sweeps found (pressing, sticking and sliding contacts, rows at a
+    /// bound), solve the remaining system — linear, plus a Newton step on each sliding
+    /// direction — with a dense LU, and follow that solution as far as the active set allows;
+    /// the projected result replaces the iterate only if it lowers the exact residual
+    /// ([`super::Residuals::exact`]), and the sweeps go on from it. Redundant contact sets on
+    /// stiff chains (a humanoid's foot), where sweeps crawl at a rate near 1, are then solved in
+    /// a few sweeps. The first step comes after `subspace_period` sweeps, later if the sweeps
+    /// are cheap next to it (big problems of light rows), the next ones at doubling sweep counts,
+    /// and one after the last sweep of an unconverged solve: problems the sweeps settle sooner
+    /// never pay for it. Cone friction only (skipped with a pyramid), at most 128 rows.
     pub subspace: bool,
-    /// Sweeps between subspace steps (≥ 1).
+    /// Fewest sweeps before the first subspace step (≥ 1).
     pub subspace_period: usize,
     /// Scratch space reused between solves (leave it at its default).
     pub workspace: PgsWorkspace,
@@ -290,7 +294,8 @@ impl ConstraintSolver for PgsSolver {
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
                 next_subspace = 2 * sweeps;
                 let ws = &mut self.workspace.subspace;
-                if let SubspaceOutcome::Accepted(reached) = subspace_step(problem, lambda, ws, self.tolerance) {
+                if let SubspaceOutcome::Accepted(reached) = subspace_step(problem, lambda, ws, self.tolerance)
+                {
                     lambda.copy_from(&ws.candidate);
                     if sparse {
                         let mut dv = dv.borrow_mut();

@@ -10,24 +10,25 @@
 //! - equality rows `w_i = 0` with `λ_i` free: bilateral rows, unilateral rows with `λ_i > 0`,
 //!   bounded rows strictly inside their box, the normal of a pressing contact and the tangents of
 //!   a sticking one (strictly inside its cone);
-//! - a sliding contact (on the cone's boundary) keeps the direction PGS found: `λ_t = λ_n c` with
-//!   `c = λ_t / λ_n`, so its tangents drop out and enter through the normal's column
-//!   `e_n + c₁ e_t1 + c₂ e_t2`, with the normal's equation `w_n = 0`;
+//! - a sliding contact (on the cone's boundary) has two unknowns, its normal impulse and its
+//!   direction θ, with `λ_t = λ_n (μ₁ cos θ, μ₂ sin θ)`: the equations are `w_n = 0` and that
+//!   the scaled slip `(μ₁ w₁, μ₂ w₂)` be parallel to the direction (maximum dissipation), the
+//!   latter nonlinear in θ and linearised (a Newton step per round);
 //! - every other row keeps its impulse (zero, or the bound it sits at).
 //!
-//! The reduced system `K δ = −w_s` (K = rows s of (A + R) times the columns above; not symmetric
-//! when a contact slides) is solved by LU with partial pivoting of `K + εI` and iterative
-//! refinement against K: a proximal-point iteration, so that the singular K of a redundant
-//! contact set still yields a solution of the consistent system near PGS's iterate. The result
-//! is projected back onto the feasible set and taken only if it lowers the exact residual
-//! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on from it,
-//! correcting the active set if the solve changed it.
+//! The reduced system (not symmetric when a contact slides) is solved by LU with partial
+//! pivoting of `K + εI` and a few refinement steps against K: a proximal-point iteration, so
+//! that the singular K of a redundant contact set still yields a solution near PGS's iterate.
+//! That solution is followed as far as the active set allows (see [`subspace_step`]), the
+//! result is projected onto the feasible set and taken only if it lowers the exact residual
+//! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on
+//! from it, correcting the active set where the step left it wrong.
 
 use super::residuals::{norm2, residuals};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
 
-/// Largest reduced system solved (free impulses): the dense LU costs O(s³).
+/// Largest problem (rows) a subspace step is tried on: the dense LU costs O(s³).
 pub(crate) const MAX_SUBSPACE: usize = 128;
 
 /// Proximal regularisation of the reduced solve, relative to K's largest diagonal entry.
@@ -287,7 +288,8 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     ws.gram.resize(m * m, 0.0);
     let sp = &problem.sparsity;
     let nv = sp.nv;
-    let span_total: usize = ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
+    let span_total: usize =
+        ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
     if problem.is_matrix_free() && m > 0 && nv <= 2 * span_total / m {
         ws.w_rows.clear();
         ws.w_rows.resize(m * nv, 0.0);
@@ -319,7 +321,7 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
 }
 
 /// Rounds of solve-and-block (and Newton steps on sliding directions) per subspace step.
-const MAX_ROUNDS: usize = 16;
+const MAX_ROUNDS: usize = 8;
 
 /// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
 const MAX_TURN: f64 = 0.5;
@@ -363,7 +365,11 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
                 if a != 0.0 {
                     let row = &ws.gram[ws.local[r] * m..(ws.local[r] + 1) * m];
                     // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
-                    k += a * column.iter().filter(|(_, b)| *b != 0.0).map(|&(c, b)| b * row[ws.local[c]]).sum::<f64>();
+                    k += a * column
+                        .iter()
+                        .filter(|(_, b)| *b != 0.0)
+                        .map(|&(c, b)| b * row[ws.local[c]])
+                        .sum::<f64>();
                 }
             }
             ws.k[u * s + v] = k;
@@ -407,7 +413,11 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
 
 /// The longest step α ≤ 1 along `ws.x` that keeps every free impulse in its set, and what
 /// blocks it.
-fn step_length(problem: &ConstraintProblem, lambda: &DVector<f64>, ws: &SubspaceWorkspace) -> (f64, Blocking) {
+fn step_length(
+    problem: &ConstraintProblem,
+    lambda: &DVector<f64>,
+    ws: &SubspaceWorkspace,
+) -> (f64, Blocking) {
     let (mut alpha, mut blocking) = (1.0, Blocking::None);
     let mut limit = |a: f64, b: Blocking| {
         if a < alpha {
@@ -488,7 +498,10 @@ fn first_positive_root(a: f64, b: f64, c: f64) -> Option<f64> {
     // Stable roots: q = −(b + sign(b) √disc)/2, t = q/a and c/q.
     let q = -0.5 * (b + b.signum() * sq);
     let roots = [if q != 0.0 { c / q } else { f64::INFINITY }, q / a];
-    roots.into_iter().filter(|t| *t > 0.0 && t.is_finite()).fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+    roots
+        .into_iter()
+        .filter(|t| *t > 0.0 && t.is_finite())
+        .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
 }
 
 /// Fills `ws.units` with PGS's active set at `lambda` (a sticking contact's normal is followed
@@ -563,7 +576,15 @@ fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
         let s1 = if c.mu > 0.0 { lambda[t1] / c.mu } else { 0.0 };
         let s2 = if c.mu2 > 0.0 { lambda[t2] / c.mu2 } else { 0.0 };
         let reach = norm2(s1, s2);
-        let k = if reach > bound { if reach > 0.0 { bound / reach } else { 0.0 } } else { 1.0 };
+        let k = if reach > bound {
+            if reach > 0.0 {
+                bound / reach
+            } else {
+                0.0
+            }
+        } else {
+            1.0
+        };
         lambda[t1] = c.mu * s1 * k;
         lambda[t2] = c.mu2 * s2 * k;
     }
