@@ -288,9 +288,13 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     ws.gram.resize(m * m, 0.0);
     let sp = &problem.sparsity;
     let nv = sp.nv;
-    let span_total: usize =
-        ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
-    if problem.is_matrix_free() && m > 0 && nv <= 2 * span_total / m {
+    // W's rows are there only when the problem was assembled from blocks.
+    let dense_w = problem.is_matrix_free() && m > 0 && {
+        let span_total: usize =
+            ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
+        nv <= 2 * span_total / m
+    };
+    if dense_w {
         ws.w_rows.clear();
         ws.w_rows.resize(m * nv, 0.0);
         for (a, &r) in ws.rows.iter().enumerate() {
