@@ -104,6 +104,8 @@ pub(crate) struct SubspaceWorkspace {
     w_rows: Vec<f64>,
     /// A + R over those rows (row-major).
     gram: Vec<f64>,
+    /// (A + R) times each unit's column, over `rows` (units × rows).
+    gc: Vec<f64>,
     /// K (row-major, units × units) and its LU factors.
     k: Vec<f64>,
     lu: Vec<f64>,
@@ -121,7 +123,7 @@ impl SubspaceWorkspace {
     /// Reserves room for a problem of `n` rows, so that the step allocates nothing later.
     pub(crate) fn reserve(&mut self, n: usize) {
         let s = n.min(MAX_SUBSPACE);
-        for v in [&mut self.gram, &mut self.k, &mut self.lu] {
+        for v in [&mut self.gram, &mut self.gc, &mut self.k, &mut self.lu] {
             v.reserve((s * s).saturating_sub(v.len()));
         }
         for v in [&mut self.rhs, &mut self.x, &mut self.correction] {
@@ -356,6 +358,21 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     if s > MAX_SUBSPACE {
         return false;
     }
+    // (A + R) times each unit's column over the rows (m per unit), then K[u][v] as the unit
+    // u's equation applied to it.
+    ws.gc.clear();
+    ws.gc.resize(s * m, 0.0);
+    for v in 0..s {
+        let out = &mut ws.gc[v * m..(v + 1) * m];
+        // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
+        for (c, b) in ws.units[v].column().into_iter().filter(|(_, b)| *b != 0.0) {
+            // Gram is symmetric: its row c is its column c.
+            let lc = ws.local[c];
+            for (o, g) in out.iter_mut().zip(&ws.gram[lc * m..(lc + 1) * m]) {
+                *o += b * g;
+            }
+        }
+    }
     ws.k.clear();
     ws.k.resize(s * s, 0.0);
     ws.rhs.clear();
@@ -363,20 +380,9 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     for u in 0..s {
         let equation = ws.units[u].equation();
         for v in 0..s {
-            let column = ws.units[v].column();
-            let mut k = 0.0;
-            for &(r, a) in &equation {
-                if a != 0.0 {
-                    let row = &ws.gram[ws.local[r] * m..(ws.local[r] + 1) * m];
-                    // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
-                    k += a * column
-                        .iter()
-                        .filter(|(_, b)| *b != 0.0)
-                        .map(|&(c, b)| b * row[ws.local[c]])
-                        .sum::<f64>();
-                }
-            }
-            ws.k[u * s + v] = k;
+            let gc = &ws.gc[v * m..(v + 1) * m];
+            ws.k[u * s + v] =
+                equation.iter().filter(|(_, a)| *a != 0.0).map(|&(r, a)| a * gc[ws.local[r]]).sum();
         }
         let g: f64 = equation.iter().map(|&(r, a)| a * ws.w[r]).sum();
         if let Unit::Angle(c) = ws.units[u] {
@@ -616,12 +622,14 @@ fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
             }
         }
         let pivot = a[col * s + col];
-        for r in col + 1..s {
-            let factor = a[r * s + col] / pivot;
-            a[r * s + col] = factor;
+        let (top, bottom) = a.split_at_mut((col + 1) * s);
+        let pivot_row = &top[col * s + col + 1..(col + 1) * s];
+        for row in bottom.chunks_exact_mut(s) {
+            let factor = row[col] / pivot;
+            row[col] = factor;
             if factor != 0.0 {
-                for j in col + 1..s {
-                    a[r * s + j] -= factor * a[col * s + j];
+                for (x, p) in row[col + 1..].iter_mut().zip(pivot_row) {
+                    *x -= factor * p;
                 }
             }
         }
