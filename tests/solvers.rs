@@ -754,7 +754,8 @@ fn stack_problem() -> ConstraintProblem {
 #[test]
 fn chain_falls_back_from_pgs_to_lemke() {
     let problem = stack_problem();
-    let pgs = PgsSolver { iterations: 1, tolerance: 1e-10, ..Default::default() };
+    // One plain sweep falls short; a subspace step after it would solve this small problem.
+    let pgs = PgsSolver { iterations: 1, tolerance: 1e-10, subspace: false, ..Default::default() };
     let mut chain = SolverChain::new(vec![Box::new(pgs), Box::new(LemkeSolver::default())], 1e-10);
     let mut lambda = DVector::zeros(problem.rows());
     let report = chain.solve(&problem, &mut lambda).unwrap();
@@ -771,7 +772,8 @@ fn chain_falls_back_from_pgs_to_lemke() {
 #[test]
 fn chain_reports_every_failure() {
     let problem = stack_problem();
-    let pgs = PgsSolver { iterations: 1, tolerance: 1e-10, ..Default::default() };
+    // One plain sweep falls short; a subspace step after it would solve this small problem.
+    let pgs = PgsSolver { iterations: 1, tolerance: 1e-10, subspace: false, ..Default::default() };
     let lemke =
         LemkeSolver { options: LemkeOptions { max_pivots: 1, ..Default::default() }, ..Default::default() };
     let mut chain = SolverChain::new(vec![Box::new(pgs), Box::new(lemke)], 1e-10);

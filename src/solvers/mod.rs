@@ -9,6 +9,7 @@ mod conic;
 mod lemke;
 mod pgs;
 pub mod residuals;
+mod subspace;
 
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};

@@ -1,0 +1,653 @@
+//! Subspace minimisation for projected Gauss–Seidel (Silcowitz, Niebe and Erleben, "Projected
+//! Gauss–Seidel subspace minimization method for interactive rigid body dynamics", 2010).
+//!
+//! PGS finds the active set of a problem (which contacts press, stick or slide, which limits and
+//! motors are at a bound) in a few sweeps, but then converges on it only linearly, at a rate set
+//! by A's conditioning: a redundant contact set (four corners of a foot on the floor) at the end
+//! of a stiff chain makes that rate so close to 1 that thousands of sweeps are needed. With the
+//! active set fixed the problem is a linear system, which one dense solve settles:
+//!
+//! - equality rows `w_i = 0` with `λ_i` free: bilateral rows, unilateral rows with `λ_i > 0`,
+//!   bounded rows strictly inside their box, the normal of a pressing contact and the tangents of
+//!   a sticking one (strictly inside its cone);
+//! - a sliding contact (on the cone's boundary) has two unknowns, its normal impulse and its
+//!   direction θ, with `λ_t = λ_n (μ₁ cos θ, μ₂ sin θ)`: the equations are `w_n = 0` and that
+//!   the scaled slip `(μ₁ w₁, μ₂ w₂)` be parallel to the direction (maximum dissipation), the
+//!   latter nonlinear in θ and linearised (a Newton step per round);
+//! - every other row keeps its impulse (zero, or the bound it sits at).
+//!
+//! The reduced system (not symmetric when a contact slides) is solved by LU with partial
+//! pivoting of `K + εI` and a few refinement steps against K: a proximal-point iteration, so
+//! that the singular K of a redundant contact set still yields a solution near PGS's iterate.
+//! That solution is followed as far as the active set allows (see [`subspace_step`]), the
+//! result is projected onto the feasible set and taken only if it lowers the exact residual
+//! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on
+//! from it, correcting the active set where the step left it wrong.
+
+use super::residuals::{norm2, residuals};
+use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
+use nalgebra::DVector;
+
+/// Largest problem (rows) a subspace step is tried on: the dense LU costs O(s³).
+pub(crate) const MAX_SUBSPACE: usize = 128;
+
+/// Proximal regularisation of the reduced solve, relative to K's largest diagonal entry.
+const PROXIMAL: f64 = 1e-10;
+
+/// Refinement steps of the proximal iteration.
+const REFINEMENTS: usize = 3;
+
+/// A contact slides when its tangential impulse is this close (relatively) to the cone.
+const ON_CONE: f64 = 1e-9;
+
+/// One unknown of the reduced system.
+#[derive(Clone, Copy, Debug)]
+enum Unit {
+    /// λ of this row is free; its equation is `w_row = 0`.
+    Row(usize),
+    /// The normal impulse of a sliding contact, its tangents following on the cone:
+    /// `λ_t = λ_n (μ₁ cos θ, μ₂ sin θ)`; its equation is `w_n = 0`.
+    Slide(Sliding),
+    /// The direction θ of the same sliding contact (always right after its `Slide`); its
+    /// equation is that the scaled slip `m = (μ₁ w₁, μ₂ w₂)` be parallel to (cos θ, sin θ):
+    /// `g = −sin θ m₁ + cos θ m₂ = 0` (maximum dissipation when they are opposite).
+    Angle(Sliding),
+}
+
+/// A sliding contact's rows, coefficients, normal impulse and direction (in λ_t/μ coordinates).
+#[derive(Clone, Copy, Debug)]
+struct Sliding {
+    normal: usize,
+    t1: usize,
+    t2: usize,
+    mu: [f64; 2],
+    lambda_n: f64,
+    cos: f64,
+    sin: f64,
+}
+
+impl Unit {
+    /// λ moves by the unknown times Σ coefficient · e_row (a linearisation for `Angle`).
+    fn column(&self) -> [(usize, f64); 3] {
+        match *self {
+            Unit::Row(i) => [(i, 1.0), (i, 0.0), (i, 0.0)],
+            Unit::Slide(c) => [(c.normal, 1.0), (c.t1, c.mu[0] * c.cos), (c.t2, c.mu[1] * c.sin)],
+            Unit::Angle(c) => {
+                [(c.t1, -c.lambda_n * c.mu[0] * c.sin), (c.t2, c.lambda_n * c.mu[1] * c.cos), (c.t2, 0.0)]
+            }
+        }
+    }
+    /// The equation Σ coefficient · w_row (+ the explicit θ-derivative on the diagonal).
+    fn equation(&self) -> [(usize, f64); 2] {
+        match *self {
+            Unit::Row(i) => [(i, 1.0), (i, 0.0)],
+            Unit::Slide(c) => [(c.normal, 1.0), (c.normal, 0.0)],
+            Unit::Angle(c) => [(c.t1, -c.sin * c.mu[0]), (c.t2, c.cos * c.mu[1])],
+        }
+    }
+}
+
+/// Scratch space of the subspace step (kept by the PGS workspace; allocation-free once sized).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct SubspaceWorkspace {
+    units: Vec<Unit>,
+    /// Per row: whether it belongs to a contact.
+    contact_row: Vec<bool>,
+    /// Per row: its index in `rows`, or `usize::MAX`.
+    local: Vec<usize>,
+    /// The rows the units touch (the only ones whose λ moves or whose w is read).
+    rows: Vec<usize>,
+    /// λ and w of those rows at the start.
+    start: Vec<f64>,
+    w_start: Vec<f64>,
+    /// Their rows of W (dense, rows × nv) when A is formed from W here.
+    w_rows: Vec<f64>,
+    /// A + R over those rows (row-major).
+    gram: Vec<f64>,
+    /// (A + R) times each unit's column, over `rows` (units × rows).
+    gc: Vec<f64>,
+    /// K (row-major, units × units) and its LU factors.
+    k: Vec<f64>,
+    lu: Vec<f64>,
+    pivots: Vec<usize>,
+    rhs: Vec<f64>,
+    x: Vec<f64>,
+    correction: Vec<f64>,
+    /// Row velocities of the current iterate.
+    w: DVector<f64>,
+    /// The projected result.
+    pub(crate) candidate: DVector<f64>,
+}
+
+impl SubspaceWorkspace {
+    /// Reserves room for a problem of `n` rows, so that the step allocates nothing later.
+    pub(crate) fn reserve(&mut self, n: usize) {
+        let s = n.min(MAX_SUBSPACE);
+        for v in [&mut self.gram, &mut self.gc, &mut self.k, &mut self.lu] {
+            v.reserve((s * s).saturating_sub(v.len()));
+        }
+        for v in [&mut self.rhs, &mut self.x, &mut self.correction] {
+            v.reserve(n.saturating_sub(v.len()));
+        }
+        self.units.reserve(n.saturating_sub(self.units.len()));
+        self.contact_row.reserve(n.saturating_sub(self.contact_row.len()));
+        for v in [&mut self.start, &mut self.w_start] {
+            v.reserve(n.saturating_sub(v.len()));
+        }
+        self.local.reserve(n.saturating_sub(self.local.len()));
+        self.rows.reserve(n.saturating_sub(self.rows.len()));
+        self.pivots.reserve(n.saturating_sub(self.pivots.len()));
+        if self.w.len() != n {
+            self.w = DVector::zeros(n);
+            self.candidate = DVector::zeros(n);
+        }
+    }
+}
+
+/// What a subspace step did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum SubspaceOutcome {
+    /// Not attempted: pyramid friction, λ already within `good_enough`, nothing free, or too
+    /// many free impulses.
+    Skipped,
+    /// The projected solve did not lower the exact residual (which it reports).
+    Rejected(f64),
+    /// `workspace.candidate` holds the better impulses, with this exact residual.
+    Accepted(f64),
+}
+
+/// One subspace-minimisation step from `lambda` (see the module docs): on acceptance the
+/// candidate is left in `ws.candidate` for the caller to take.
+///
+/// The reduced solve is a direction, followed as far as the active set allows (a primal
+/// active-set step): when a free impulse would leave its set on the way — a pressing normal
+/// reaching zero, a sticking contact reaching its cone, a row reaching its bound — the step stops
+/// there, that impulse joins its bound (the contact now slides in the direction it arrived
+/// with), and the system is solved again, at most `MAX_ROUNDS` times. A wrong guess of PGS
+/// (all four corners of a foot sticking where two must slip) makes the system inconsistent and
+/// its solution huge along the contact set's internal-force directions, which are exactly where
+/// PGS creeps; the first blocking impulse then ends that step at the right active set.
+pub(crate) fn subspace_step(
+    problem: &ConstraintProblem,
+    lambda: &DVector<f64>,
+    ws: &mut SubspaceWorkspace,
+    good_enough: f64,
+) -> SubspaceOutcome {
+    let n = problem.rows();
+    if problem.friction != FrictionModel::Cone || n > MAX_SUBSPACE {
+        return SubspaceOutcome::Skipped;
+    }
+    ws.reserve(n);
+    let current = residuals(problem, lambda, &mut ws.w).exact();
+    if current <= good_enough {
+        return SubspaceOutcome::Skipped;
+    }
+    let mut candidate = std::mem::replace(&mut ws.candidate, DVector::zeros(0));
+    candidate.copy_from(lambda);
+    // NNCG's extrapolation may have left the feasible set.
+    project(problem, &mut candidate);
+    if !active_units(problem, &mut candidate, ws) {
+        ws.candidate = candidate;
+        return SubspaceOutcome::Skipped;
+    }
+    problem.velocities(&candidate, &mut ws.w);
+    // Only the rows the units touch move or are read: A + R over them, w kept up to date
+    // from their changes (the other rows' λ stay as they are).
+    ws.local.clear();
+    ws.local.resize(n, usize::MAX);
+    ws.rows.clear();
+    for unit in &ws.units {
+        for r in unit.column().map(|(r, _)| r).into_iter().chain(unit.equation().map(|(r, _)| r)) {
+            if ws.local[r] == usize::MAX {
+                ws.local[r] = ws.rows.len();
+                ws.rows.push(r);
+            }
+        }
+    }
+    fill_gram(problem, ws);
+    let m = ws.rows.len();
+    ws.start.clear();
+    ws.start.extend(ws.rows.iter().map(|&r| candidate[r]));
+    ws.w_start.clear();
+    ws.w_start.extend(ws.rows.iter().map(|&r| ws.w[r]));
+    let mut solved = false;
+    for round in 0..MAX_ROUNDS {
+        // The units only lose rows between rounds (an impulse reaching its bound leaves them),
+        // so the first round's rows cover every later one.
+        if round > 0 {
+            for a in 0..m {
+                let g = &ws.gram[a * m..(a + 1) * m];
+                let change: f64 =
+                    g.iter().zip(&ws.rows).zip(&ws.start).map(|((g, &r), l0)| g * (candidate[r] - l0)).sum();
+                ws.w[ws.rows[a]] = ws.w_start[a] + change;
+            }
+            if !active_units(problem, &mut candidate, ws) {
+                break;
+            }
+        }
+        if !reduced_solve(ws) {
+            break;
+        }
+        solved = true;
+        let (alpha, blocking) = step_length(problem, &candidate, ws);
+        let mut turn: f64 = 0.0;
+        for (k, (unit, x)) in ws.units.iter().zip(&ws.x).enumerate() {
+            match *unit {
+                Unit::Row(i) => candidate[i] += alpha * x,
+                Unit::Slide(c) => {
+                    let normal = (c.lambda_n + alpha * x).max(0.0);
+                    let angle = match ws.units.get(k + 1) {
+                        Some(Unit::Angle(_)) => alpha * ws.x[k + 1],
+                        _ => 0.0,
+                    };
+                    turn = turn.max(angle.abs());
+                    let (sin_d, cos_d) = angle.sin_cos();
+                    let (cos, sin) = (c.cos * cos_d - c.sin * sin_d, c.sin * cos_d + c.cos * sin_d);
+                    candidate[c.normal] = normal;
+                    candidate[c.t1] = normal * c.mu[0] * cos;
+                    candidate[c.t2] = normal * c.mu[1] * sin;
+                }
+                Unit::Angle(_) => {}
+            }
+        }
+        match blocking {
+            // Exact on this active set (up to the direction's Newton step).
+            Blocking::None if turn <= NEWTON_TURN => break,
+            Blocking::None | Blocking::Turn => {}
+            // Exactly onto the bound, so that the next round classifies it there.
+            Blocking::Zero(row) => {
+                candidate[row] = 0.0;
+                if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                    let (_, t1, t2) = c.rows();
+                    candidate[t1] = 0.0;
+                    candidate[t2] = 0.0;
+                }
+            }
+            Blocking::Bound(row, value) => candidate[row] = value,
+            Blocking::Cone => {}
+        }
+        project(problem, &mut candidate);
+    }
+    project(problem, &mut candidate);
+    ws.candidate = candidate;
+    if !solved {
+        return SubspaceOutcome::Skipped;
+    }
+    let reached = residuals(problem, &ws.candidate, &mut ws.w).exact();
+    if reached < current {
+        SubspaceOutcome::Accepted(reached)
+    } else {
+        SubspaceOutcome::Rejected(reached)
+    }
+}
+
+/// A + R over `ws.rows` into `ws.gram`: from W's dense rows (W Wᵀ) when A is matrix-free
+/// and W's rows are dense enough for that to be cheaper than entry by entry (one branched
+/// multibody: a ragdoll, a humanoid), else entry by entry.
+fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
+    let m = ws.rows.len();
+    ws.gram.clear();
+    ws.gram.resize(m * m, 0.0);
+    let sp = &problem.sparsity;
+    let nv = sp.nv;
+    // W's rows are there only when the problem was assembled from blocks.
+    let dense_w = problem.is_matrix_free() && m > 0 && {
+        let span_total: usize =
+            ws.rows.iter().map(|&r| sp.row_spans(r).map(|(_, w)| w.len()).sum::<usize>()).sum();
+        nv <= 2 * span_total / m
+    };
+    if dense_w {
+        ws.w_rows.clear();
+        ws.w_rows.resize(m * nv, 0.0);
+        for (a, &r) in ws.rows.iter().enumerate() {
+            for (col, w) in sp.row_spans(r) {
+                ws.w_rows[a * nv + col..a * nv + col + w.len()].copy_from_slice(w);
+            }
+        }
+        for a in 0..m {
+            let wa = &ws.w_rows[a * nv..(a + 1) * nv];
+            for b in a..m {
+                let g: f64 = wa.iter().zip(&ws.w_rows[b * nv..(b + 1) * nv]).map(|(x, y)| x * y).sum();
+                ws.gram[a * m + b] = g;
+                ws.gram[b * m + a] = g;
+            }
+        }
+    } else {
+        for a in 0..m {
+            for b in a..m {
+                let g = problem.delassus_entry(ws.rows[a], ws.rows[b]);
+                ws.gram[a * m + b] = g;
+                ws.gram[b * m + a] = g;
+            }
+        }
+    }
+    for (a, &r) in ws.rows.iter().enumerate() {
+        ws.gram[a * m + a] += problem.regularization[r];
+    }
+}
+
+/// Rounds of solve-and-block (and Newton steps on sliding directions) per subspace step.
+const MAX_ROUNDS: usize = 8;
+
+/// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
+const MAX_TURN: f64 = 0.5;
+
+/// A round whose full step turns no direction more than this (rad) ends the step.
+const NEWTON_TURN: f64 = 1e-10;
+
+/// What ends a step early.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Blocking {
+    /// Nothing: the full step is feasible.
+    None,
+    /// The impulse of this row (a normal: with its tangents) reaches zero.
+    Zero(usize),
+    /// This row reaches this bound.
+    Bound(usize, f64),
+    /// A sticking contact reaches its cone (the projection puts it exactly there).
+    Cone,
+    /// A sliding direction would turn more than `MAX_TURN`.
+    Turn,
+}
+
+/// K and −g over `ws.units` from the Gram matrix over `ws.rows` and `ws.w`, solved into `ws.x`; false
+/// if the factorisation fails.
+fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
+    let s = ws.units.len();
+    let m = ws.rows.len();
+    if s > MAX_SUBSPACE {
+        return false;
+    }
+    // (A + R) times each unit's column over the rows (m per unit), then K[u][v] as the unit
+    // u's equation applied to it.
+    ws.gc.clear();
+    ws.gc.resize(s * m, 0.0);
+    for v in 0..s {
+        let out = &mut ws.gc[v * m..(v + 1) * m];
+        // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
+        for (c, b) in ws.units[v].column().into_iter().filter(|(_, b)| *b != 0.0) {
+            // Gram is symmetric: its row c is its column c.
+            let lc = ws.local[c];
+            for (o, g) in out.iter_mut().zip(&ws.gram[lc * m..(lc + 1) * m]) {
+                *o += b * g;
+            }
+        }
+    }
+    ws.k.clear();
+    ws.k.resize(s * s, 0.0);
+    ws.rhs.clear();
+    let mut largest: f64 = 0.0;
+    for u in 0..s {
+        let equation = ws.units[u].equation();
+        for v in 0..s {
+            let gc = &ws.gc[v * m..(v + 1) * m];
+            ws.k[u * s + v] =
+                equation.iter().filter(|(_, a)| *a != 0.0).map(|&(r, a)| a * gc[ws.local[r]]).sum();
+        }
+        let g: f64 = equation.iter().map(|&(r, a)| a * ws.w[r]).sum();
+        if let Unit::Angle(c) = ws.units[u] {
+            // ∂g/∂θ at fixed w: −(cos θ m₁ + sin θ m₂) (= ‖m‖ when friction opposes slip).
+            ws.k[u * s + u] -= c.cos * c.mu[0] * ws.w[c.t1] + c.sin * c.mu[1] * ws.w[c.t2];
+        }
+        largest = largest.max(ws.k[u * s + u].abs());
+        ws.rhs.push(-g);
+    }
+    if largest <= 0.0 || !largest.is_finite() {
+        return false;
+    }
+    ws.lu.clear();
+    ws.lu.extend_from_slice(&ws.k);
+    let epsilon = PROXIMAL * largest;
+    for u in 0..s {
+        ws.lu[u * s + u] += epsilon;
+    }
+    if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
+        return false;
+    }
+    // Proximal iteration x ← x + (K + εI)⁻¹ (r − K x).
+    ws.x.clear();
+    ws.x.resize(s, 0.0);
+    for _ in 0..REFINEMENTS {
+        ws.correction.clear();
+        for u in 0..s {
+            let kx: f64 = ws.k[u * s..(u + 1) * s].iter().zip(&ws.x).map(|(k, x)| k * x).sum();
+            ws.correction.push(ws.rhs[u] - kx);
+        }
+        lu_solve(&ws.lu, &ws.pivots, s, &mut ws.correction);
+        for (x, d) in ws.x.iter_mut().zip(&ws.correction) {
+            *x += d;
+        }
+    }
+    ws.x.iter().all(|x| x.is_finite())
+}
+
+/// The longest step α ≤ 1 along `ws.x` that keeps every free impulse in its set, and what
+/// blocks it.
+fn step_length(
+    problem: &ConstraintProblem,
+    lambda: &DVector<f64>,
+    ws: &SubspaceWorkspace,
+) -> (f64, Blocking) {
+    let (mut alpha, mut blocking) = (1.0, Blocking::None);
+    let mut limit = |a: f64, b: Blocking| {
+        if a < alpha {
+            alpha = a.max(0.0);
+            blocking = b;
+        }
+    };
+    for (k, (unit, &x)) in ws.units.iter().zip(&ws.x).enumerate() {
+        match *unit {
+            Unit::Slide(c) => {
+                if x < 0.0 {
+                    limit(c.lambda_n / -x, Blocking::Zero(c.normal));
+                }
+            }
+            Unit::Angle(_) => {
+                if x.abs() > MAX_TURN {
+                    limit(MAX_TURN / x.abs(), Blocking::Turn);
+                }
+            }
+            Unit::Row(row) => {
+                let l = lambda[row];
+                match problem.laws[row] {
+                    RowLaw::Unilateral => {
+                        if x < 0.0 {
+                            limit(l / -x, Blocking::Zero(row));
+                        }
+                        // A sticking contact: its tangents are the next units (see `active_units`).
+                        if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                            let (_, t1, t2) = c.rows();
+                            let mut d = [0.0; 2];
+                            for (unit, &dx) in ws.units[k + 1..].iter().zip(&ws.x[k + 1..]).take(2) {
+                                match *unit {
+                                    Unit::Row(t) if t == t1 => d[0] = dx,
+                                    Unit::Row(t) if t == t2 => d[1] = dx,
+                                    _ => {}
+                                }
+                            }
+                            let scaled = |v: f64, mu: f64| if mu > 0.0 { v / mu } else { 0.0 };
+                            let s0 = [scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2)];
+                            let ds = [scaled(d[0], c.mu), scaled(d[1], c.mu2)];
+                            // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
+                            let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
+                            let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
+                            let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
+                            if let Some(root) = first_positive_root(qa, qb, qc) {
+                                limit(root, Blocking::Cone);
+                            }
+                        }
+                    }
+                    RowLaw::Bounded { lo, hi } => {
+                        if x < 0.0 && lo.is_finite() {
+                            limit((l - lo) / -x, Blocking::Bound(row, lo));
+                        } else if x > 0.0 && hi.is_finite() {
+                            limit((hi - l) / x, Blocking::Bound(row, hi));
+                        }
+                    }
+                    RowLaw::Bilateral | RowLaw::Friction { .. } => {}
+                }
+            }
+        }
+    }
+    (alpha, blocking)
+}
+
+/// The smallest positive root of `a t² + b t + c` with `c < 0` (the path starts inside), if any.
+fn first_positive_root(a: f64, b: f64, c: f64) -> Option<f64> {
+    if c >= 0.0 {
+        return Some(0.0);
+    }
+    if a.abs() <= 1e-300 {
+        return (b > 0.0).then(|| -c / b);
+    }
+    let disc = b * b - 4.0 * a * c;
+    if disc < 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    // Stable roots: q = −(b + sign(b) √disc)/2, t = q/a and c/q.
+    let q = -0.5 * (b + b.signum() * sq);
+    let roots = [if q != 0.0 { c / q } else { f64::INFINITY }, q / a];
+    roots
+        .into_iter()
+        .filter(|t| *t > 0.0 && t.is_finite())
+        .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+}
+
+/// Fills `ws.units` with PGS's active set at `lambda` (a sticking contact's normal is followed
+/// by its tangents, a sliding one's by its direction, whose tangents it puts exactly on the
+/// cone); false if nothing is free.
+fn active_units(problem: &ConstraintProblem, lambda: &mut DVector<f64>, ws: &mut SubspaceWorkspace) -> bool {
+    let n = problem.rows();
+    ws.units.clear();
+    ws.contact_row.clear();
+    ws.contact_row.resize(n, false);
+    for c in &problem.contacts {
+        let (nr, t1, t2) = c.rows();
+        ws.contact_row[nr] = true;
+        ws.contact_row[t1] = true;
+        ws.contact_row[t2] = true;
+        let normal = lambda[nr];
+        if normal <= 0.0 {
+            continue; // Separating: every impulse stays zero.
+        }
+        let scaled = |l: f64, mu: f64| if mu > 0.0 { l / mu } else { 0.0 };
+        let (s1, s2) = (scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2));
+        let reach = norm2(s1, s2);
+        if c.mu.max(c.mu2) > 0.0 && reach > 0.0 && reach >= (1.0 - ON_CONE) * normal {
+            let (cos, sin) = (s1 / reach, s2 / reach);
+            lambda[t1] = normal * c.mu * cos;
+            lambda[t2] = normal * c.mu2 * sin;
+            let sliding = Sliding { normal: nr, t1, t2, mu: [c.mu, c.mu2], lambda_n: normal, cos, sin };
+            ws.units.push(Unit::Slide(sliding));
+            // With one coefficient zero the direction is only a sign.
+            if c.mu > 0.0 && c.mu2 > 0.0 {
+                ws.units.push(Unit::Angle(sliding));
+            }
+        } else {
+            ws.units.push(Unit::Row(nr));
+            for (t, mu) in [(t1, c.mu), (t2, c.mu2)] {
+                if mu > 0.0 {
+                    ws.units.push(Unit::Row(t));
+                }
+            }
+        }
+    }
+    for i in 0..n {
+        if ws.contact_row[i] {
+            continue;
+        }
+        let free = match problem.laws[i] {
+            RowLaw::Bilateral => true,
+            RowLaw::Unilateral => lambda[i] > 0.0,
+            RowLaw::Bounded { lo, hi } => lo < lambda[i] && lambda[i] < hi,
+            RowLaw::Friction { .. } => false, // Owned by a contact (checked by `check_problem`).
+        };
+        if free {
+            ws.units.push(Unit::Row(i));
+        }
+    }
+    !ws.units.is_empty()
+}
+
+/// Projects λ onto the feasible set: λ ≥ 0 on unilateral rows, into the box on bounded rows,
+/// into the cone of the (projected) normal impulse on contacts.
+fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
+    for i in 0..problem.rows() {
+        match problem.laws[i] {
+            RowLaw::Unilateral => lambda[i] = lambda[i].max(0.0),
+            RowLaw::Bounded { lo, hi } => lambda[i] = lambda[i].clamp(lo, hi),
+            RowLaw::Bilateral | RowLaw::Friction { .. } => {}
+        }
+    }
+    for c in &problem.contacts {
+        let (nr, t1, t2) = c.rows();
+        let bound = lambda[nr];
+        let s1 = if c.mu > 0.0 { lambda[t1] / c.mu } else { 0.0 };
+        let s2 = if c.mu2 > 0.0 { lambda[t2] / c.mu2 } else { 0.0 };
+        let reach = norm2(s1, s2);
+        let k = if reach > bound {
+            if reach > 0.0 {
+                bound / reach
+            } else {
+                0.0
+            }
+        } else {
+            1.0
+        };
+        lambda[t1] = c.mu * s1 * k;
+        lambda[t2] = c.mu2 * s2 * k;
+    }
+}
+
+/// In-place LU factorisation with partial pivoting of the row-major s × s matrix `a`; false if
+/// a pivot vanishes.
+fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
+    pivots.clear();
+    for col in 0..s {
+        let (mut best, mut best_abs) = (col, a[col * s + col].abs());
+        for r in col + 1..s {
+            let v = a[r * s + col].abs();
+            if v > best_abs {
+                (best, best_abs) = (r, v);
+            }
+        }
+        if best_abs <= 0.0 || !best_abs.is_finite() {
+            return false;
+        }
+        pivots.push(best);
+        if best != col {
+            for j in 0..s {
+                a.swap(col * s + j, best * s + j);
+            }
+        }
+        let pivot = a[col * s + col];
+        let (top, bottom) = a.split_at_mut((col + 1) * s);
+        let pivot_row = &top[col * s + col + 1..(col + 1) * s];
+        for row in bottom.chunks_exact_mut(s) {
+            let factor = row[col] / pivot;
+            row[col] = factor;
+            if factor != 0.0 {
+                for (x, p) in row[col + 1..].iter_mut().zip(pivot_row) {
+                    *x -= factor * p;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Solves with the factors of [`lu_factor`], in place.
+fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
+    for (col, &p) in pivots.iter().enumerate() {
+        x.swap(col, p);
+    }
+    for r in 0..s {
+        let sum: f64 = lu[r * s..r * s + r].iter().zip(&x[..r]).map(|(l, x)| l * x).sum();
+        x[r] -= sum;
+    }
+    for r in (0..s).rev() {
+        let sum: f64 = lu[r * s + r + 1..(r + 1) * s].iter().zip(&x[r + 1..]).map(|(u, x)| u * x).sum();
+        x[r] = (x[r] - sum) / lu[r * s + r];
+    }
+}

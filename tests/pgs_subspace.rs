@@ -1,0 +1,75 @@
+//! PGS with subspace minimisation (`PgsSolver::subspace`) on problems where plain PGS stalls:
+//! two steps of `../shared/peers/humanoid_fall.xml` (written by `World::problem` and
+//! `gelenk::io::problem::problem_to_json` at steps 80 and 898 of the episode that
+//! `gelenk bench world ../shared/peers/humanoid_fall.xml` runs), where the chain `pgs100,clarabel`
+//! fell back to clarabel. Step 80: the four corner contacts of a foot (12 rows, a redundant set on
+//! a stiff chain), where two corners must slip by 4.5e-5 m/s; plain sweeps creep along the
+//! contacts' internal-force direction and stay above 1e-6 m/s for thousands of sweeps. Step 898:
+//! 36 rows, nine contacts, several sliding. Solved cold (from λ = 0), as the probe that found them.
+
+use gelenk::constraints::ConstraintProblem;
+use gelenk::solvers::{residuals, ConstraintSolver, PgsSolver};
+use nalgebra::DVector;
+use std::path::Path;
+
+fn load(name: &str) -> ConstraintProblem {
+    gelenk::io::problem::read_problem(&Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name))
+        .unwrap()
+}
+
+/// (exact residual in m/s, sweeps) of a cold PGS solve.
+fn solve(problem: &ConstraintProblem, sweeps: usize, subspace: bool) -> (f64, usize) {
+    let mut pgs = PgsSolver { subspace, tolerance: 1e-12, ..PgsSolver::with_iterations(sweeps) };
+    let mut lambda = DVector::zeros(problem.rows());
+    let info = pgs.solve(problem, &mut lambda).unwrap();
+    let mut w = DVector::zeros(0);
+    (residuals(problem, &lambda, &mut w).exact(), info.iterations)
+}
+
+#[test]
+fn subspace_steps_solve_a_redundant_foot_contact_where_plain_pgs_stalls() {
+    let problem = load("humanoid_fall_step0080_problem.json");
+    assert_eq!((problem.rows(), problem.contacts.len()), (12, 4));
+    let (with, sweeps) = solve(&problem, 100, true);
+    // 1e-9 m/s: three orders below the chain's certifying tolerance (1e-6 m/s); the subspace
+    // step lands at rounding level (measured 3.5e-16 after 8 sweeps).
+    assert!(with <= 1e-9, "PGS-SM residual {with:.3e} after {sweeps} sweeps");
+    assert!(sweeps <= 40, "PGS-SM took {sweeps} sweeps");
+    // Plain PGS (same sweeps, and ten times as many): still above the chain's 1e-6 m/s.
+    for budget in [100, 1000] {
+        let (plain, _) = solve(&problem, budget, false);
+        assert!(plain > 1e-6, "plain PGS reached {plain:.3e} in {budget} sweeps: the case no longer stalls");
+    }
+}
+
+#[test]
+fn subspace_steps_find_sliding_directions_on_a_nine_contact_step() {
+    let problem = load("humanoid_fall_step0898_problem.json");
+    assert_eq!(problem.rows(), 36);
+    let (with, sweeps) = solve(&problem, 100, true);
+    // Measured 2.6e-16 after 40 sweeps; 1e-9 m/s as above.
+    assert!(with <= 1e-9, "PGS-SM residual {with:.3e} after {sweeps} sweeps");
+    let (plain, _) = solve(&problem, 100, false);
+    assert!(plain > 1e-6, "plain PGS reached {plain:.3e}");
+}
+
+#[test]
+fn subspace_steps_leave_quickly_converging_solves_alone() {
+    // Plain PGS and PGS-SM give the same impulses when the sweeps converge before the first
+    // subspace step is due (8 sweeps at the earliest): the foot problem warm-started at the
+    // answer a first solve found.
+    let problem = load("humanoid_fall_step0080_problem.json");
+    let mut first = PgsSolver { subspace: true, tolerance: 1e-12, ..PgsSolver::with_iterations(200) };
+    let mut lambda = DVector::zeros(problem.rows());
+    first.solve(&problem, &mut lambda).unwrap();
+    let (mut a, mut b) = (lambda.clone(), lambda.clone());
+    let info_a = PgsSolver { subspace: true, tolerance: 1e-10, ..PgsSolver::with_iterations(100) }
+        .solve(&problem, &mut a)
+        .unwrap();
+    let info_b = PgsSolver { subspace: false, tolerance: 1e-10, ..PgsSolver::with_iterations(100) }
+        .solve(&problem, &mut b)
+        .unwrap();
+    assert_eq!(info_a.iterations, info_b.iterations);
+    assert!(info_a.iterations < 8, "warm start at the answer took {} sweeps", info_a.iterations);
+    assert_eq!(a, b);
+}
