@@ -18,6 +18,7 @@ mod contact;
 mod joints;
 mod loops;
 
+pub(crate) use assemble::dot;
 pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters};
 pub use joints::{add_joint_friction_rows, add_joint_limit_rows, add_motor_row, JointLimitParameters};

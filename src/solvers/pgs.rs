@@ -166,7 +166,7 @@ impl ConstraintSolver for PgsSolver {
                 let dv = dv.as_slice();
                 let mut jdv = 0.0;
                 for (col, w) in problem.sparsity.row_spans(i) {
-                    jdv += w.iter().zip(&dv[col..col + w.len()]).map(|(a, b)| a * b).sum::<f64>();
+                    jdv += crate::constraints::dot(w, &dv[col..col + w.len()]);
                 }
                 jdv + problem.regularization[i] * lambda[i] + problem.bias[i]
             } else {

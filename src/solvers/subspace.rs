@@ -307,7 +307,7 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
         for a in 0..m {
             let wa = &ws.w_rows[a * nv..(a + 1) * nv];
             for b in a..m {
-                let g: f64 = wa.iter().zip(&ws.w_rows[b * nv..(b + 1) * nv]).map(|(x, y)| x * y).sum();
+                let g: f64 = crate::constraints::dot(wa, &ws.w_rows[b * nv..(b + 1) * nv]);
                 ws.gram[a * m + b] = g;
                 ws.gram[b * m + a] = g;
             }
@@ -410,7 +410,7 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     for _ in 0..REFINEMENTS {
         ws.correction.clear();
         for u in 0..s {
-            let kx: f64 = ws.k[u * s..(u + 1) * s].iter().zip(&ws.x).map(|(k, x)| k * x).sum();
+            let kx: f64 = crate::constraints::dot(&ws.k[u * s..(u + 1) * s], &ws.x);
             ws.correction.push(ws.rhs[u] - kx);
         }
         lu_solve(&ws.lu, &ws.pivots, s, &mut ws.correction);
@@ -643,11 +643,11 @@ fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
         x.swap(col, p);
     }
     for r in 0..s {
-        let sum: f64 = lu[r * s..r * s + r].iter().zip(&x[..r]).map(|(l, x)| l * x).sum();
+        let sum: f64 = crate::constraints::dot(&lu[r * s..r * s + r], &x[..r]);
         x[r] -= sum;
     }
     for r in (0..s).rev() {
-        let sum: f64 = lu[r * s + r + 1..(r + 1) * s].iter().zip(&x[r + 1..]).map(|(u, x)| u * x).sum();
+        let sum: f64 = crate::constraints::dot(&lu[r * s + r + 1..(r + 1) * s], &x[r + 1..]);
         x[r] = (x[r] - sum) / lu[r * s + r];
     }
 }
