@@ -68,6 +68,11 @@ pub struct Data {
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).
     pub factor_inv_sqrt_d: DVector<f64>,
+    /// Per dof k, whether L_kj ≠ 0 for some ancestor j of k (from
+    /// [`crate::algorithms::factor_mass_matrix`]): rows of L that are zero off the diagonal (a
+    /// free body whose origin is its centre of mass, on principal axes) are skipped by the
+    /// constraint assembly's row scaling.
+    pub factor_row_coupled: Vec<bool>,
     /// A 6×nv frame Jacobian, output of [`crate::algorithms::frame_jacobian`].
     pub jacobian: DMatrix<f64>,
     /// Centre of mass in the world (m).
@@ -107,6 +112,7 @@ impl Data {
             mass_matrix: DMatrix::zeros(nv, nv),
             mass_matrix_factor: DMatrix::zeros(nv, nv),
             factor_inv_sqrt_d: DVector::zeros(nv),
+            factor_row_coupled: vec![true; nv],
             jacobian: DMatrix::zeros(6, nv),
             com: Vec3::zeros(),
             kinetic_energy: 0.0,

@@ -77,10 +77,14 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
         // L's row k, held in column k above the diagonal, mirrored below it (the documented
         // layout, read by the solves).
         let mut j = parent[k];
+        let mut coupled = false;
         while j != NO_DOF {
-            data.mass_matrix_factor[(k, j)] = data.mass_matrix_factor[(j, k)];
+            let l = data.mass_matrix_factor[(j, k)];
+            data.mass_matrix_factor[(k, j)] = l;
+            coupled |= l != 0.0;
             j = parent[j];
         }
+        data.factor_row_coupled[k] = coupled;
     }
     Ok(())
 }

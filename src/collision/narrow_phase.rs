@@ -170,7 +170,10 @@ fn convex_against_half_space(
 /// them from step to step (a stack then rocks and settles by millimetres). Every vertex of a
 /// hull or box within the margin of the contact plane (through the manifold's first point,
 /// along its normal) whose foot on that plane lies on the other shape's surface is added; the
-/// reduction then keeps the 4 that span the most area.
+/// reduction then keeps the 4 that span the most area. When the clipping kept no point at all
+/// (the same corners exactly on the boundary), the plane goes through the other shape's
+/// support point along the manifold's normal: otherwise the pair would lose every contact for
+/// a step and the boxes above it fall by g·h².
 fn add_hull_vertices(
     pos_ab: &Pose,
     shape_a: &dyn ParryShape,
@@ -178,15 +181,34 @@ fn add_hull_vertices(
     prediction: Real,
     m: &mut Manifold,
 ) {
-    let Some(first) = m.points.first().copied() else { return };
     let pos_ba = pos_ab.inverse();
+    // The two surfaces' planes: through the manifold's first point, or, when parry's clipping
+    // kept no point at all (two equal boxes face on face, offset by rounding: every corner lies
+    // on the other face's boundary), through each shape's support point along its normal.
+    let (plane_b_in_a, plane_a_in_b) = match m.points.first() {
+        Some(first) => (*pos_ab * first.local_p2, pos_ba * first.local_p1),
+        None => {
+            let unit = |n: parry3d_f64::math::Vector| (n.length() - 1.0).abs() <= 1e-6;
+            let (Some(support_a), Some(support_b)) = (shape_a.as_support_map(), shape_b.as_support_map())
+            else {
+                return;
+            };
+            if !unit(m.local_n1) || !unit(m.local_n2) {
+                return;
+            }
+            (
+                *pos_ab * support_b.local_support_point(m.local_n2),
+                pos_ba * support_a.local_support_point(m.local_n1),
+            )
+        }
+    };
     let on_surface = |foot: parry3d_f64::math::Vector, shape: &dyn ParryShape| {
         let proj = shape.project_local_point(foot, false);
         ((proj.point - foot).length() <= 1e-9 * (1.0 + foot.length())).then_some(proj.point)
     };
     {
         // Plane of B's surface in A's frame; n1 points from A to B.
-        let (plane, n1) = (*pos_ab * first.local_p2, m.local_n1);
+        let (plane, n1) = (plane_b_in_a, m.local_n1);
         for (i, v) in vertices(shape_a).enumerate() {
             let v = &v;
             let distance = (plane - *v).dot(n1);
@@ -205,7 +227,7 @@ fn add_hull_vertices(
         }
     }
     {
-        let (plane, n2) = (pos_ba * first.local_p1, m.local_n2);
+        let (plane, n2) = (plane_a_in_b, m.local_n2);
         for (i, v) in vertices(shape_b).enumerate() {
             let v = &v;
             let distance = (plane - *v).dot(n2);

@@ -424,6 +424,7 @@ pub fn assemble_single(
 pub struct TreeFactor<'a> {
     factor: &'a DMatrix<f64>,
     inv_sqrt_d: &'a [f64],
+    coupled: &'a [bool],
     dof_parent: &'a [usize],
     run_start: &'a [usize],
 }
@@ -434,6 +435,7 @@ impl<'a> TreeFactor<'a> {
         Self {
             factor: &data.mass_matrix_factor,
             inv_sqrt_d: data.factor_inv_sqrt_d.as_slice(),
+            coupled: &data.factor_row_coupled,
             dof_parent: &model.dof_parent,
             run_start: &model.dof_run_start,
         }
@@ -453,10 +455,10 @@ impl<'a> TreeFactor<'a> {
         // contiguous stretches, L_kj read from the factor's mirrored column k.
         for k in (0..=last).rev() {
             let wk = w[k];
-            if wk == 0.0 {
+            let row = first_dof + k;
+            if wk == 0.0 || !self.coupled[row] {
                 continue;
             }
-            let row = first_dof + k;
             let column = self.column(row);
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
@@ -486,6 +488,10 @@ impl<'a> TreeFactor<'a> {
             let row = first_dof + k;
             let column = self.column(row);
             let mut xk = x[k] * self.inv_sqrt_d[row];
+            if !self.coupled[row] {
+                x[k] = xk;
+                continue;
+            }
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
                 xk -= dot(&column[start..end], &x[start - first_dof..end - first_dof]);

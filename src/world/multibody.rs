@@ -1,7 +1,9 @@
 //! One multibody of a world: its model, data, state, applied forces, motors and the buffers of
 //! its share of a step.
 
-use crate::algorithms::{aba, compute_joint_jacobians};
+use crate::algorithms::{
+    aba, compute_joint_jacobians, factor_mass_matrix, nonlinear_effects, solve_mass_matrix_slice,
+};
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::integrators::implicit::{implicit_free_velocity, ImplicitTerms};
@@ -103,6 +105,11 @@ pub struct Multibody {
     pub(crate) factored: bool,
     /// Joint damping and suspension springs, treated implicitly.
     implicit_terms: ImplicitTerms,
+    /// `data` holds the factor of a mass matrix that does not depend on q (free bodies on the
+    /// root, no joint damping: see [`has_constant_mass_matrix`]): the free motion skips CRBA and
+    /// the factorization. Other writers of the factor (smooth steps) write the same M, up to
+    /// round-off.
+    constant_mass_factored: bool,
 }
 
 impl Multibody {
@@ -132,6 +139,7 @@ impl Multibody {
             q_next: model.neutral_configuration(),
             rhs: DVector::zeros(nv),
             factored: false,
+            constant_mass_factored: false,
             model,
         }
     }
@@ -235,6 +243,22 @@ impl Multibody {
             self.add_frame_rotation_terms(h);
             return Ok(());
         }
+        if self.implicit_terms.is_empty() && has_constant_mass_matrix(&self.model) {
+            if !self.constant_mass_factored {
+                constant_mass_matrix(&self.model, &mut self.data);
+                factor_mass_matrix(&self.model, &mut self.data)?;
+                self.constant_mass_factored = true;
+            }
+            // Only the bias forces are new (RNEA).
+            nonlinear_effects(&self.model, &mut self.data, &self.state.q, &self.state.v)?;
+            self.rhs -= &self.data.nle;
+            solve_mass_matrix_slice(&self.model, &self.data, self.rhs.as_mut_slice());
+            self.v_free.copy_from(&self.state.v);
+            self.v_free.axpy(h, &self.rhs, 1.0);
+            self.factored = true;
+            self.add_frame_rotation_terms(h);
+            return Ok(());
+        }
         implicit_free_velocity(
             &self.model,
             &mut self.data,
@@ -288,5 +312,26 @@ impl Multibody {
                 }
             }
         }
+    }
+}
+
+/// Whether M(q) is the same for every q: free bodies attached to the root (their fused fixed
+/// children included), whose body-frame mass matrix is block diagonal with each body's spatial
+/// inertia about its origin.
+fn has_constant_mass_matrix(model: &Model) -> bool {
+    (1..model.nbodies()).all(|i| matches!(model.joint(i), Joint::Free) && model.parent(i) == 0)
+}
+
+/// M of a model of free bodies on the root ([`has_constant_mass_matrix`]) into
+/// `data.mass_matrix`: block diagonal, each block the body's spatial inertia about its origin in
+/// its own axes, `[[m 1, −m [c]×], [m [c]×, I_o]]`. Written from the inertias, not by CRBA (which
+/// rotates them to world axes and back), so that structurally zero entries are exactly zero and
+/// the assembly skips them ([`Data::factor_row_coupled`]).
+fn constant_mass_matrix(model: &Model, data: &mut Data) {
+    data.mass_matrix.fill(0.0);
+    for i in 1..model.nbodies() {
+        let k = model.idx_v(i);
+        let block = model.inertia(i).to_matrix();
+        data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&block);
     }
 }
