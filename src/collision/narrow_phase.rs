@@ -259,3 +259,28 @@ fn vertices(shape: &dyn ParryShape) -> impl Iterator<Item = parry3d_f64::math::V
     });
     hull.iter().copied().chain(corners)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parry3d_f64::math::{Rotation, Vector};
+    use parry3d_f64::shape::Cuboid;
+
+    /// The pose of one pair of a 20-box stack (equal 0.1 m cubes) at which parry's clipping kept
+    /// no point: B 2.75e-15 m above A, turned by ~1e-16 rad. Every corner must still be found.
+    #[test]
+    fn equal_boxes_face_on_face_keep_four_contacts_when_clipping_keeps_none() {
+        let cube = Cuboid::new(Vector::new(0.05, 0.05, 0.05));
+        let rotation =
+            Rotation::from_xyzw(-1.4062650245609794e-16, 2.13318836454674e-16, 4.4063919872127254e-17, 1.0);
+        let translation = Vector::new(2.304988321515077e-17, 1.524036380320376e-17, 0.10000000000000275);
+        let pos_ab = Pose::from_parts(translation, rotation);
+        let mut state = PairState::default();
+        dispatch(ShapeKind::Box, &cube, ShapeKind::Box, &cube, &pos_ab, 0.005, &mut state).unwrap();
+        let points: Vec<_> = state.manifolds.iter().flat_map(|m| m.points.iter()).collect();
+        assert!(points.len() >= 4, "{} contact points", points.len());
+        for p in points {
+            assert!(p.dist.abs() < 1e-12, "distance {}", p.dist);
+        }
+    }
+}
