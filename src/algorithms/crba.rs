@@ -8,8 +8,7 @@
 //! of size m·|p|² and loses every digit of M (the 6 % Delassus error found by the far-origin
 //! hard case).
 
-use super::check::check_q;
-use super::kinematics::joint_step;
+use super::jacobian::compute_joint_jacobians;
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::math::Transform;
@@ -23,18 +22,22 @@ pub fn crba<'d>(
     data: &'d mut Data,
     q: &DVector<f64>,
 ) -> Result<&'d DMatrix<f64>, DynamicsError> {
-    check_q(model, q)?;
+    compute_joint_jacobians(model, data, q)?;
+    Ok(crba_at_kinematics(model, data))
+}
+
+/// CRBA's passes after [`compute_joint_jacobians`] at the same q (the joint transforms, body
+/// poses and world Jacobian columns in `data` are current; the world's step computes them in its
+/// kinematics phase): M into `data.mass_matrix`.
+pub(crate) fn crba_at_kinematics<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
     let mut to_reference = Transform::identity();
     for i in 1..model.nbodies() {
-        joint_step(model, data, q, i);
-        let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        data.x_wb[i] = data.x_wb[p] * data.x_pb[i];
+        let (iv, nv) = (model.idx_v[i], model.joints[i].nv());
         if i == 1 {
             to_reference = Transform::from_translation(-data.x_wb[1].translation);
         }
         let x_rb = to_reference * data.x_wb[i];
         for k in iv..iv + nv {
-            data.j_world[k] = data.x_wb[i].act_motion(&data.s[k]);
             data.j_crba[k] = x_rb.act_motion(&data.s[k]);
         }
         data.ycrb[i] = model.inertias[i].transformed(&x_rb);
@@ -56,5 +59,5 @@ pub fn crba<'d>(
             data.ycrb[p] += ycrb;
         }
     }
-    Ok(&data.mass_matrix)
+    &data.mass_matrix
 }

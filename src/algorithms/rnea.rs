@@ -25,7 +25,7 @@ pub fn rnea<'d>(
     check_q(model, q)?;
     check_v(model, v, "v")?;
     check_v(model, a, "a")?;
-    rnea_passes(model, data, q, Some(v), Some(a));
+    rnea_passes(model, data, Some(q), Some(v), Some(a));
     Ok(&data.tau)
 }
 
@@ -38,9 +38,22 @@ pub fn nonlinear_effects<'d>(
 ) -> Result<&'d DVector<f64>, DynamicsError> {
     check_q(model, q)?;
     check_v(model, v, "v")?;
-    rnea_passes(model, data, q, Some(v), None);
+    rnea_passes(model, data, Some(q), Some(v), None);
     data.nle.copy_from(&data.tau);
     Ok(&data.nle)
+}
+
+/// [`nonlinear_effects`] with the joint transforms and motion subspaces already in `data` from
+/// [`crate::algorithms::compute_joint_jacobians`] at the same q (the world's step computes them
+/// in its kinematics phase): `v` must have nv entries (not checked again).
+pub(crate) fn nonlinear_effects_at_kinematics<'d>(
+    model: &Model,
+    data: &'d mut Data,
+    v: &DVector<f64>,
+) -> &'d DVector<f64> {
+    rnea_passes(model, data, None, Some(v), None);
+    data.nle.copy_from(&data.tau);
+    &data.nle
 }
 
 /// Generalized gravity `g(q)` = `rnea(q, 0, 0)`, written to `data.gravity_torque` and returned.
@@ -50,23 +63,27 @@ pub fn generalized_gravity<'d>(
     q: &DVector<f64>,
 ) -> Result<&'d DVector<f64>, DynamicsError> {
     check_q(model, q)?;
-    rnea_passes(model, data, q, None, None);
+    rnea_passes(model, data, Some(q), None, None);
     data.gravity_torque.copy_from(&data.tau);
     Ok(&data.gravity_torque)
 }
 
-/// Both passes of RNEA into `data.tau`; `None` stands for a zero vector.
+/// Both passes of RNEA into `data.tau`; `None` stands for a zero vector of v or a. With `q`
+/// `None` the joint transforms and motion subspaces in `data` are taken as current (from
+/// [`crate::algorithms::compute_joint_jacobians`] at the same q).
 pub(crate) fn rnea_passes(
     model: &Model,
     data: &mut Data,
-    q: &DVector<f64>,
+    q: Option<&DVector<f64>>,
     v: Option<&DVector<f64>>,
     a: Option<&DVector<f64>>,
 ) {
     data.v[0] = Motion::zero();
     data.a[0] = Motion::new(-model.gravity, Vec3::zeros());
     for i in 1..model.nbodies() {
-        joint_step(model, data, q, i);
+        if let Some(q) = q {
+            joint_step(model, data, q, i);
+        }
         let (p, iv, joint) = (model.parents[i], model.idx_v[i], &model.joints[i]);
         let nv = joint.nv();
         let x = data.x_pb[i];

@@ -6,7 +6,7 @@ use crate::algorithms::{
 };
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::integrators::implicit::{implicit_free_velocity, ImplicitTerms};
+use crate::integrators::implicit::{implicit_free_velocity_at_kinematics, ImplicitTerms};
 use crate::math::Vec3;
 use crate::model::{Joint, Model};
 use crate::state::State;
@@ -259,7 +259,8 @@ impl Multibody {
             self.add_frame_rotation_terms(h);
             return Ok(());
         }
-        implicit_free_velocity(
+        // The step's kinematics phase computed the joint transforms at this q.
+        implicit_free_velocity_at_kinematics(
             &self.model,
             &mut self.data,
             &self.implicit_terms,
