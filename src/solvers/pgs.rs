@@ -411,7 +411,14 @@ fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, s: &mut DVecto
 
 /// Scales (λ₁, λ₂) radially into the friction set of normal impulse `normal` (in the coordinates
 /// (λ₁/μ, λ₂/μ₂), where the set is a disc or a regular polygon).
-fn project_friction(l1: f64, l2: f64, normal: f64, mu: f64, mu2: f64, model: FrictionModel) -> (f64, f64) {
+pub(super) fn project_friction(
+    l1: f64,
+    l2: f64,
+    normal: f64,
+    mu: f64,
+    mu2: f64,
+    model: FrictionModel,
+) -> (f64, f64) {
     let bound = normal.max(0.0);
     let s1 = if mu > 0.0 { l1 / mu } else { 0.0 };
     let s2 = if mu2 > 0.0 { l2 / mu2 } else { 0.0 };

@@ -24,6 +24,7 @@
 //! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on
 //! from it, correcting the active set where the step left it wrong.
 
+use super::pgs::project_friction;
 use super::residuals::{norm2, residuals};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
@@ -582,21 +583,8 @@ fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
     }
     for c in &problem.contacts {
         let (nr, t1, t2) = c.rows();
-        let bound = lambda[nr];
-        let s1 = if c.mu > 0.0 { lambda[t1] / c.mu } else { 0.0 };
-        let s2 = if c.mu2 > 0.0 { lambda[t2] / c.mu2 } else { 0.0 };
-        let reach = norm2(s1, s2);
-        let k = if reach > bound {
-            if reach > 0.0 {
-                bound / reach
-            } else {
-                0.0
-            }
-        } else {
-            1.0
-        };
-        lambda[t1] = c.mu * s1 * k;
-        lambda[t2] = c.mu2 * s2 * k;
+        (lambda[t1], lambda[t2]) =
+            project_friction(lambda[t1], lambda[t2], lambda[nr], c.mu, c.mu2, FrictionModel::Cone);
     }
 }
 
