@@ -3,10 +3,7 @@
 //! The world's free-motion phase uses the same function.
 
 use super::{check_step, Integrator, IntegratorError};
-use crate::algorithms::{
-    check_v, crba, crba_at_kinematics, factor_mass_matrix, nonlinear_effects,
-    nonlinear_effects_at_kinematics, solve_mass_matrix_slice,
-};
+use crate::algorithms::{crba, factor_mass_matrix, nonlinear_effects, solve_mass_matrix_slice};
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::model::{Joint, Model};
@@ -85,29 +82,11 @@ pub fn implicit_free_velocity(
     implicit_velocity_from_dynamics(model, data, terms, q, v, h, rhs, v_out)
 }
 
-/// [`implicit_free_velocity`] with the kinematics of q already in `data`
-/// ([`crate::algorithms::compute_joint_jacobians`] at the same q, as the world's step computes
-/// them first): CRBA and RNEA skip the joint transforms.
+/// The rest of [`implicit_free_velocity`] once `data` holds M (`data.mass_matrix`) and the
+/// bias forces (`data.nle`) at (q, v): the world's step computes those from its kinematics
+/// phase ([`crate::algorithms::crba_at_kinematics`]) and calls this directly.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn implicit_free_velocity_at_kinematics(
-    model: &Model,
-    data: &mut Data,
-    terms: &ImplicitTerms,
-    q: &DVector<f64>,
-    v: &DVector<f64>,
-    h: f64,
-    rhs: &mut DVector<f64>,
-    v_out: &mut DVector<f64>,
-) -> Result<(), DynamicsError> {
-    check_v(model, v, "v")?;
-    crba_at_kinematics(model, data);
-    nonlinear_effects_at_kinematics(model, data, v);
-    implicit_velocity_from_dynamics(model, data, terms, q, v, h, rhs, v_out)
-}
-
-/// The rest of [`implicit_free_velocity`] once `data` holds M and the bias forces.
-#[allow(clippy::too_many_arguments)]
-fn implicit_velocity_from_dynamics(
+pub(crate) fn implicit_velocity_from_dynamics(
     model: &Model,
     data: &mut Data,
     terms: &ImplicitTerms,

@@ -2,11 +2,12 @@
 //! its share of a step.
 
 use crate::algorithms::{
-    aba, compute_joint_jacobians, factor_mass_matrix, nonlinear_effects, solve_mass_matrix_slice,
+    aba, check_v, compute_joint_jacobians, crba_at_kinematics, factor_mass_matrix,
+    nonlinear_effects_at_kinematics, solve_mass_matrix_slice,
 };
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::integrators::implicit::{implicit_free_velocity_at_kinematics, ImplicitTerms};
+use crate::integrators::implicit::{implicit_velocity_from_dynamics, ImplicitTerms};
 use crate::math::Vec3;
 use crate::model::{Joint, Model};
 use crate::state::State;
@@ -249,8 +250,9 @@ impl Multibody {
                 factor_mass_matrix(&self.model, &mut self.data)?;
                 self.constant_mass_factored = true;
             }
-            // Only the bias forces are new (RNEA).
-            nonlinear_effects(&self.model, &mut self.data, &self.state.q, &self.state.v)?;
+            // Only the bias forces are new (RNEA, on the kinematics phase's joint transforms).
+            check_v(&self.model, &self.state.v, "v")?;
+            nonlinear_effects_at_kinematics(&self.model, &mut self.data, &self.state.v);
             self.rhs -= &self.data.nle;
             solve_mass_matrix_slice(&self.model, &self.data, self.rhs.as_mut_slice());
             self.v_free.copy_from(&self.state.v);
@@ -259,8 +261,12 @@ impl Multibody {
             self.add_frame_rotation_terms(h);
             return Ok(());
         }
-        // The step's kinematics phase computed the joint transforms at this q.
-        implicit_free_velocity_at_kinematics(
+        // The step's kinematics phase computed the joint transforms at this q: CRBA and RNEA
+        // skip them.
+        check_v(&self.model, &self.state.v, "v")?;
+        crba_at_kinematics(&self.model, &mut self.data);
+        nonlinear_effects_at_kinematics(&self.model, &mut self.data, &self.state.v);
+        implicit_velocity_from_dynamics(
             &self.model,
             &mut self.data,
             &self.implicit_terms,
