@@ -99,6 +99,7 @@ pub(crate) fn dispatch(
                 }
             }
         }
+        drop_duplicate_points(m);
         Ok(())
     } else {
         DefaultQueryDispatcher.contact_manifolds(
@@ -108,7 +109,29 @@ pub(crate) fn dispatch(
             prediction,
             &mut state.manifolds,
             &mut state.workspace,
-        )
+        )?;
+        state.manifolds.iter_mut().for_each(drop_duplicate_points);
+        Ok(())
+    }
+}
+
+/// Two points of one manifold closer than this (m) on shape A are one contact.
+const DUPLICATE_DISTANCE: Real = 1e-5;
+
+/// Removes points that repeat an earlier point of the manifold. Parry's polygonal-feature rule
+/// appends GJK's closest pair (with unknown feature ids) to the clipped points in 3D even when
+/// clipping already produced it — a capsule's end on a box face comes out twice. Two rows with
+/// one Jacobian make the Delassus matrix exactly singular, and on such degenerate problems
+/// projected Gauss–Seidel stalls (a pile of ragdolls, hands on torsos, never settled).
+fn drop_duplicate_points(m: &mut Manifold) {
+    let mut k = 1;
+    while k < m.points.len() {
+        let p = m.points[k].local_p1;
+        if m.points[..k].iter().any(|q| (q.local_p1 - p).length() <= DUPLICATE_DISTANCE) {
+            m.points.remove(k);
+        } else {
+            k += 1;
+        }
     }
 }
 
@@ -282,5 +305,25 @@ mod tests {
         for p in points {
             assert!(p.dist.abs() < 1e-12, "distance {}", p.dist);
         }
+    }
+
+    /// A capsule lying across a box face (a ragdoll's forearm on another's hand): parry's
+    /// clipping gives the segment's two ends and GJK's closest pair repeats one of them; the
+    /// manifold keeps each contact once (a repeated row makes the contact problem singular).
+    #[test]
+    fn capsule_on_a_box_face_has_no_repeated_contact_points() {
+        use parry3d_f64::shape::Capsule;
+        let plate = Cuboid::new(Vector::new(0.3, 0.3, 0.05));
+        // Segment along x, 0.2 m long, radius 0.04, slightly tilted so that one end is deepest
+        // (the closest pair GJK reports is then that end).
+        let capsule = Capsule::new_x(0.1, 0.04);
+        let rotation = Rotation::from_scaled_axis(Vector::new(0.0, 0.01, 0.0));
+        let pos_ab = Pose::from_parts(Vector::new(0.05, 0.02, 0.05 + 0.04 - 1e-4), rotation);
+        let mut state = PairState::default();
+        dispatch(ShapeKind::Box, &plate, ShapeKind::Capsule, &capsule, &pos_ab, 0.02, &mut state).unwrap();
+        let points: Vec<_> = state.manifolds.iter().flat_map(|m| m.points.iter()).collect();
+        assert_eq!(points.len(), 2, "{points:?}");
+        let gap = (points[0].local_p1 - points[1].local_p1).length();
+        assert!(gap > 0.19, "the two ends are {gap} m apart");
     }
 }

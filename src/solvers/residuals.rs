@@ -72,12 +72,14 @@ pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
     (angle.cos(), angle.sin())
 }
 
-/// Whether row `i` is the normal row of a contact: contact rows are laid out (n, t1, t2), so the
-/// next row is a friction row of a contact whose normal is `i` (O(1), unlike a search).
-fn is_contact_normal(problem: &ConstraintProblem, i: usize) -> bool {
+/// The contact whose normal is row `i`, if any: contact rows are laid out (n, t1, t2), so the
+/// next row is a friction row naming the contact (O(1), unlike a search over the contacts).
+pub(super) fn contact_of_normal(problem: &ConstraintProblem, i: usize) -> Option<usize> {
     match problem.laws.get(i + 1) {
-        Some(RowLaw::Friction { contact }) => problem.contacts.get(*contact).is_some_and(|c| c.normal == i),
-        _ => problem.contacts.iter().any(|c| c.normal == i),
+        Some(RowLaw::Friction { contact }) => {
+            problem.contacts.get(*contact).is_some_and(|c| c.normal == i).then_some(*contact)
+        }
+        _ => None,
     }
 }
 
@@ -106,7 +108,7 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
             RowLaw::Unilateral => {
                 let natural = (di * li).min(wi).abs();
                 r.signorini = r.signorini.max(natural);
-                if !is_contact_normal(problem, i) {
+                if contact_of_normal(problem, i).is_none() {
                     r.signorini_limits = r.signorini_limits.max(natural);
                 }
                 r.complementarity = r.complementarity.max((li * wi).abs());

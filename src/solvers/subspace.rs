@@ -25,7 +25,7 @@
 //! from it, correcting the active set where the step left it wrong.
 
 use super::pgs::project_friction;
-use super::residuals::{norm2, residuals};
+use super::residuals::{contact_of_normal, norm2, residuals};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
 
@@ -258,8 +258,8 @@ pub(crate) fn subspace_step(
             // Exactly onto the bound, so that the next round classifies it there.
             Blocking::Zero(row) => {
                 candidate[row] = 0.0;
-                if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
-                    let (_, t1, t2) = c.rows();
+                if let Some(c) = contact_of_normal(problem, row) {
+                    let (_, t1, t2) = problem.contacts[c].rows();
                     candidate[t1] = 0.0;
                     candidate[t2] = 0.0;
                 }
@@ -456,7 +456,7 @@ fn step_length(
                             limit(l / -x, Blocking::Zero(row));
                         }
                         // A sticking contact: its tangents are the next units (see `active_units`).
-                        if let Some(c) = problem.contacts.iter().find(|c| c.normal == row) {
+                        if let Some(c) = contact_of_normal(problem, row).map(|c| &problem.contacts[c]) {
                             let (_, t1, t2) = c.rows();
                             let mut d = [0.0; 2];
                             for (unit, &dx) in ws.units[k + 1..].iter().zip(&ws.x[k + 1..]).take(2) {
