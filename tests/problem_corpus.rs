@@ -587,3 +587,58 @@ fn export_problems_command_writes_each_step() {
     );
     std::fs::remove_dir_all(&tmp).ok();
 }
+
+/// `export-problems` on a scene file: the world steps with its own chain and writes the problem
+/// of each selected step as posed; the exported problems are solvable, and `--friction` applies.
+#[test]
+fn export_problems_command_takes_scene_files() {
+    let tmp = temp_dir("export_scene");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll_fall.toml");
+    let run = |friction: &str, out: &std::path::Path| {
+        gelenk(&[
+            "export-problems",
+            scene,
+            "--steps",
+            "300",
+            "--only",
+            "299",
+            "--friction",
+            friction,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let cone = tmp.join("cone");
+    let out = run("cone", &cone);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let dir = cone.join("step-0299");
+    let meta = read_meta(&dir).unwrap();
+    // After 0.6 s the ragdoll lies on the ground: contacts and limit rows.
+    assert_eq!(meta.scene, "ragdoll_fall");
+    assert!(
+        meta.contacts > 4 && meta.rows > 3 * meta.contacts,
+        "{} rows, {} contacts",
+        meta.rows,
+        meta.contacts
+    );
+    assert_eq!(meta.formulation, "cone-socp");
+    for file in &meta.files {
+        assert!(dir.join(file).is_file(), "{file}");
+    }
+    let problem = read_problem(&dir).unwrap();
+    assert_eq!(problem.rows(), meta.rows);
+    let (record, _) = run_solver(CorpusSolver::Clarabel, &problem);
+    assert_eq!(record.status, SolveStatus::Solved);
+    let pyramid = tmp.join("pyramid");
+    let out = run("pyramid:4", &pyramid);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let meta = read_meta(&pyramid.join("step-0299")).unwrap();
+    assert_eq!(meta.friction, "pyramid:4");
+    let (record, _) = run_solver(CorpusSolver::Lemke, &read_problem(&pyramid.join("step-0299")).unwrap());
+    assert_eq!(record.status, SolveStatus::Solved);
+    assert_one_line_error(
+        &gelenk(&["export-problems", "no/such/scene.toml", "--steps", "1", "--out", tmp.to_str().unwrap()]),
+        "scene.toml",
+    );
+    std::fs::remove_dir_all(&tmp).ok();
+}

@@ -42,11 +42,13 @@ enum Command {
         #[arg(long)]
         states: PathBuf,
     },
-    /// Step a built-in scene and write each step's constraint problem (problem.json, cone.json,
-    /// lcp.npz, qp.npz for QPs, meta.json) into OUT/step-NNNN/.
+    /// Step a built-in scene, a scene file (models/*.toml) or an MJCF file and write each step's
+    /// constraint problem (problem.json, cone.json, lcp.npz, qp.npz for QPs, meta.json) into
+    /// OUT/step-NNNN/.
     ExportProblems {
-        /// Built-in scene: box-drop, box-flat, stack2, stack10, sphere-incline, four-bar,
-        /// limit-pendulum.
+        /// Built-in scene (box-drop, box-flat, stack2, stack10, sphere-incline, four-bar,
+        /// limit-pendulum), or a scene file (.toml) or MJCF file (.xml), stepped by the world with
+        /// its own solver chain.
         scene: String,
         /// Number of steps to simulate.
         #[arg(long)]
@@ -708,6 +710,10 @@ fn export_problems(
 ) -> Result<(), String> {
     use gelenk::io::problem::{write_problem, ProblemMeta};
     use gelenk::solvers::{ClarabelSolver, ConstraintSolver};
+    let path = Path::new(scene);
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml") || e.eq_ignore_ascii_case("xml")) {
+        return export_world_problems(path, steps, out, friction, only);
+    }
     let mut scene = gelenk::scenes::Scene::new(scene).map_err(|e| e.to_string())?;
     scene.friction = parse_friction(friction)?;
     let mut problem = gelenk::constraints::ConstraintProblem::default();
@@ -743,6 +749,42 @@ fn export_problems(
             .solve(&problem, &mut lambda)
             .map_err(|e| format!("{} step {step}: {e}", scene.name))?;
         scene.advance(&problem, &lambda);
+    }
+    println!("wrote {written} problems of {steps} steps to {}", out.display());
+    Ok(())
+}
+
+/// `export-problems` for a scene or MJCF file: the world steps with its own solver chain, and
+/// the problem of each selected step is written as it was posed (before the solve).
+fn export_world_problems(
+    path: &Path,
+    steps: usize,
+    out: &Path,
+    friction: &str,
+    only: &[usize],
+) -> Result<(), String> {
+    use gelenk::io::problem::{write_problem, ProblemMeta};
+    let mut world = load_world(path)?;
+    world.set_friction(parse_friction(friction)?).map_err(|e| e.to_string())?;
+    let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let h = world.options().dt;
+    let mut written = 0;
+    for step in 0..steps {
+        world.step().map_err(|e| format!("{name} step {step}: {e}"))?;
+        let problem = world.problem();
+        if problem.rows() > 0 && (only.is_empty() || only.contains(&step)) {
+            let meta = ProblemMeta::compute(&name, step, h, problem);
+            let dir = out.join(format!("step-{step:04}"));
+            write_problem(&dir, problem, &meta).map_err(|e| e.to_string())?;
+            println!(
+                "{}: {} rows, {} contacts, {}",
+                dir.display(),
+                meta.rows,
+                meta.contacts,
+                meta.formulation
+            );
+            written += 1;
+        }
     }
     println!("wrote {written} problems of {steps} steps to {}", out.display());
     Ok(())

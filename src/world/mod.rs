@@ -26,7 +26,8 @@ pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows_between,
-    add_motor_row, ConstraintProblem, ContactParameters, LoopClosure, ProblemBuilder, RowOrigin, TreeFactor,
+    add_motor_row, ConstraintProblem, ContactParameters, FrictionModel, LoopClosure, ProblemBuilder,
+    RowOrigin, TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -275,6 +276,16 @@ impl World {
     pub fn set_solvers(&mut self, solvers: Vec<SolverKind>) {
         self.options.solvers = solvers;
         self.chain = self.options.chain();
+    }
+
+    /// Replaces the friction model of the contact rows ([`WorldOptions::friction`]) from the next
+    /// step on.
+    pub fn set_friction(&mut self, friction: FrictionModel) -> Result<(), StepError> {
+        self.builder =
+            ProblemBuilder::with_blocks(self.nv_total, &self.blocks, friction).map_err(StepError::Solver)?;
+        self.options.friction = friction;
+        self.chain = self.options.chain();
+        Ok(())
     }
 
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
