@@ -212,6 +212,7 @@ pub(crate) fn subspace_step(
     ws.w_start.clear();
     ws.w_start.extend(ws.rows.iter().map(|&r| ws.w[r]));
     let mut solved = false;
+    let mut reached = None;
     for round in 0..MAX_ROUNDS {
         // The units only lose rows between rounds (an impulse reaching its bound leaves them),
         // so the first round's rows cover every later one.
@@ -268,13 +269,23 @@ pub(crate) fn subspace_step(
             Blocking::Cone => {}
         }
         project(problem, &mut candidate);
+        if blocking == Blocking::None {
+            // Another Newton round on the sliding directions would follow: stop once the iterate
+            // is good enough (a residual costs a product with A, a round a reduced factorisation;
+            // the humanoid's sliding feet needed a third round only to shrink the turn to 1e-10).
+            let r = residuals(problem, &candidate, &mut ws.w).exact();
+            if r <= NEWTON_STOP * good_enough {
+                reached = Some(r);
+                break;
+            }
+        }
     }
     project(problem, &mut candidate);
     ws.candidate = candidate;
     if !solved {
         return SubspaceOutcome::Skipped;
     }
-    let reached = residuals(problem, &ws.candidate, &mut ws.w).exact();
+    let reached = reached.unwrap_or_else(|| residuals(problem, &ws.candidate, &mut ws.w).exact());
     if reached < current {
         SubspaceOutcome::Accepted(reached)
     } else {
@@ -332,6 +343,10 @@ const MAX_ROUNDS: usize = 8;
 
 /// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
 const MAX_TURN: f64 = 0.5;
+
+/// A Newton round whose iterate's residual is below this share of the tolerance ends the step
+/// (far enough below that the next step's warm start is as good as an exact one).
+const NEWTON_STOP: f64 = 1e-3;
 
 /// A round whose full step turns no direction more than this (rad) ends the step.
 const NEWTON_TURN: f64 = 1e-10;
