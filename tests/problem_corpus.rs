@@ -636,6 +636,24 @@ fn export_problems_command_takes_scene_files() {
     assert_eq!(meta.friction, "pyramid:4");
     let (record, _) = run_solver(CorpusSolver::Lemke, &read_problem(&pyramid.join("step-0299")).unwrap());
     assert_eq!(record.status, SolveStatus::Solved);
+    // The scene's controls are applied before each step: the buggy, asleep on its springs until
+    // the drive command at 0.5 s, has motor rows at 0.6 s (without the commands it would still be
+    // asleep, with no problem to write).
+    let buggy = tmp.join("buggy");
+    let out = gelenk(&[
+        "export-problems",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/models/buggy_drive.toml"),
+        "--steps",
+        "300",
+        "--only",
+        "299",
+        "--out",
+        buggy.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let problem = read_problem(&buggy.join("step-0299")).unwrap();
+    let motors = problem.origins.iter().filter(|o| matches!(o, RowOrigin::Motor(_))).count();
+    assert_eq!(motors, 6, "the wheels' motor and servo rows");
     assert_one_line_error(
         &gelenk(&["export-problems", "no/such/scene.toml", "--steps", "1", "--out", tmp.to_str().unwrap()]),
         "scene.toml",

@@ -764,12 +764,31 @@ fn export_world_problems(
     only: &[usize],
 ) -> Result<(), String> {
     use gelenk::io::problem::{write_problem, ProblemMeta};
-    let mut world = load_world(path)?;
-    world.set_friction(parse_friction(friction)?).map_err(|e| e.to_string())?;
+    enum Source {
+        /// A TOML scene: its controls (vehicle commands, servos) are applied before each step.
+        Scene(Box<gelenk::io::scene::Scene>),
+        Mjcf(Box<gelenk::world::World>),
+    }
+    let mut source = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) {
+        Source::Scene(Box::new(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?))
+    } else {
+        Source::Mjcf(Box::new(load_world(path)?))
+    };
+    let friction = parse_friction(friction)?;
     let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
-    let h = world.options().dt;
     let mut written = 0;
     for step in 0..steps {
+        let world = match &mut source {
+            Source::Scene(scene) => {
+                scene.apply_controls().map_err(|e| format!("{name} step {step}: {e}"))?;
+                &mut scene.world
+            }
+            Source::Mjcf(world) => world,
+        };
+        if step == 0 {
+            world.set_friction(friction).map_err(|e| e.to_string())?;
+        }
+        let h = world.options().dt;
         world.step().map_err(|e| format!("{name} step {step}: {e}"))?;
         let problem = world.problem();
         if problem.rows() > 0 && (only.is_empty() || only.contains(&step)) {
