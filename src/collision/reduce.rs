@@ -55,6 +55,47 @@ pub(crate) fn reduce(points: &mut [Candidate]) -> usize {
     }
 }
 
+/// Replaces the reduced set `points[..kept]` by one point per contact normal, at the centre of the
+/// points sharing it (positions averaged) with the depth of the deepest of them, for a collider
+/// whose contact stands for a patch (a tyre); returns the new count. Points of one pair share
+/// their normal unless they come from several manifolds (the triangles of a height field under
+/// a wheel), which stay separate contacts. The deepest depth, not the mean: a tilted wheel's lower
+/// rim edge must not sink while the upper one is still above the surface (a speculative point).
+pub(crate) fn merge_to_patch(points: &mut [Candidate], kept: usize) -> usize {
+    // (sum of point_a, sum of point_b, deepest distance, count, normal, feature) per normal.
+    let mut groups: [(Vec3, Vec3, f64, usize, Vec3, u64); MAX_POINTS_PER_PAIR] =
+        [(Vec3::zeros(), Vec3::zeros(), f64::INFINITY, 0, Vec3::zeros(), 0); MAX_POINTS_PER_PAIR];
+    let mut count = 0;
+    for c in &points[..kept.min(MAX_POINTS_PER_PAIR)] {
+        let g = match groups[..count].iter().position(|g| (g.4 - c.normal).norm() <= 1e-9) {
+            Some(g) => g,
+            None => {
+                // One point per pair and normal: a constant feature per group keeps the warm start
+                // matched when the rim point that reduction put first changes.
+                groups[count] = (Vec3::zeros(), Vec3::zeros(), f64::INFINITY, 0, c.normal, count as u64);
+                count += 1;
+                count - 1
+            }
+        };
+        let group = &mut groups[g];
+        group.0 += c.point_a;
+        group.1 += c.point_b;
+        group.2 = group.2.min(c.distance);
+        group.3 += 1;
+    }
+    for (slot, (a, b, distance, n, normal, feature)) in points.iter_mut().zip(&groups[..count]) {
+        let scale = 1.0 / *n as f64;
+        *slot = Candidate {
+            point_a: a * scale,
+            point_b: b * scale,
+            normal: *normal,
+            distance: *distance,
+            feature: *feature,
+        };
+    }
+    count
+}
+
 fn argmax(points: &[Candidate], from: usize, key: impl Fn(&Candidate) -> f64) -> usize {
     let mut best = from;
     let mut best_key = f64::NEG_INFINITY;
@@ -103,5 +144,21 @@ mod tests {
     fn small_sets_are_kept_whole() {
         let mut pts = vec![at(0.0, 0.0, 0.0), at(1.0, 0.0, 0.0)];
         assert_eq!(reduce(&mut pts), 2);
+    }
+
+    /// A wheel's two rim points on flat ground become one point midway, at the deeper depth;
+    /// points with another normal (a height field's other triangle) stay a contact of their own.
+    #[test]
+    fn patch_contact_is_the_centre_of_the_points_sharing_a_normal() {
+        let mut points = [at(0.0, -0.1, -0.002), at(0.0, 0.1, 0.001)];
+        assert_eq!(merge_to_patch(&mut points, 2), 1);
+        assert!((points[0].point_a - Vec3::new(0.0, 0.0, 0.0)).norm() < 1e-15);
+        assert_eq!(points[0].distance, -0.002);
+        let mut straddling = [at(0.0, -0.1, -0.001), at(0.3, 0.1, -0.003), at(0.0, 0.1, -0.002)];
+        straddling[1].normal = Vec3::new(0.0, 0.1, 1.0).normalize();
+        assert_eq!(merge_to_patch(&mut straddling, 3), 2);
+        assert!((straddling[0].point_a - Vec3::new(0.0, 0.0, 0.0)).norm() < 1e-15);
+        assert_eq!((straddling[0].distance, straddling[1].distance), (-0.002, -0.003));
+        assert_eq!(straddling[1].point_a, Vec3::new(0.3, 0.1, 0.0));
     }
 }

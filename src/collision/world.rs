@@ -6,7 +6,7 @@ use super::broad_phase::SweepAndPrune;
 use super::convert::{from_pose, from_vector, to_pose};
 use super::mesh::{MeshOptions, MissingMeshPolicy};
 use super::narrow_phase::{dispatch, PairCache};
-use super::reduce::{reduce, Candidate};
+use super::reduce::{merge_to_patch, reduce, Candidate};
 use super::shape::{self, ShapeKind, ShapeSource};
 use crate::data::Data;
 use crate::error::CollisionError;
@@ -78,6 +78,9 @@ pub struct Collider {
     local_pose: Pose,
     world_pose: Pose,
     aabb: Aabb,
+    /// Contacts of this collider stand for a patch: one point per pair (see
+    /// [`CollisionWorld::set_patch_contact`]).
+    patch: bool,
 }
 
 impl Collider {
@@ -109,6 +112,10 @@ impl Collider {
     /// World axis-aligned bounding box (m), as of the last update, margin not included.
     pub fn aabb(&self) -> ([f64; 3], [f64; 3]) {
         (self.aabb.mins.to_array(), self.aabb.maxs.to_array())
+    }
+    /// Whether its contacts are one point per pair ([`CollisionWorld::set_patch_contact`]).
+    pub fn is_patch_contact(&self) -> bool {
+        self.patch
     }
 }
 
@@ -317,6 +324,21 @@ impl CollisionWorld {
         }
     }
 
+    /// Makes every contact of a collider one point per pair, at the centre of the reduced set
+    /// (positions and depths averaged; the deepest point where the pair's points have several
+    /// normals): a tyre's contact patch. A thin wheel (a cylinder on its rim) otherwise touches
+    /// flat ground at both rim edges, and when it scrubs in a turn those two rows, coupled
+    /// through the light wheel dofs, make the contact problem nearly singular (PGS then needs
+    /// ~1000 sweeps). Not for shapes that must not tip about the point (a box on a face).
+    pub fn set_patch_contact(&mut self, collider: usize, on: bool) -> Result<(), CollisionError> {
+        let count = self.colliders.len();
+        self.colliders
+            .get_mut(collider)
+            .ok_or(CollisionError::IndexOutOfRange { what: "colliders", index: collider, count })?
+            .patch = on;
+        Ok(())
+    }
+
     /// Sets the groups and mask of a collider.
     pub fn set_filter(&mut self, collider: usize, filter: CollisionFilter) -> Result<(), CollisionError> {
         let count = self.colliders.len();
@@ -451,7 +473,10 @@ impl CollisionWorld {
         }
         self.stats.touching_pairs += 1;
         self.stats.raw_points += self.candidates.len();
-        let kept = reduce(&mut self.candidates);
+        let mut kept = reduce(&mut self.candidates);
+        if ca.patch || cb.patch {
+            kept = merge_to_patch(&mut self.candidates, kept);
+        }
         for c in &self.candidates[..kept] {
             self.contacts.push(Contact {
                 collider_a: a,
@@ -509,6 +534,7 @@ fn make_collider(
         local_pose,
         world_pose: local_pose,
         aabb,
+        patch: false,
     }
 }
 

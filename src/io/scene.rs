@@ -125,7 +125,7 @@
 //! | | `fixed` | static geometry instead of a free body (false) |
 //! | `[[vehicle]]` | `multibody` | name of a floating `[[urdf]]` multibody to drive with [`crate::vehicle::Vehicle`] (required) |
 //! | | `front`, `rear` | hinge2 joints `[left, right]` (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
-//! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
+//! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque`, `patch_contact` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
 //! | `[[vehicle.command]]` | `at` | simulated time (s) from which the command holds (required) |
 //! | | `speed` | throttle: target speed, m/s (releases the brakes) |
 //! | | `coast` | `true`: no drive torque, brakes released |
@@ -1025,6 +1025,7 @@ struct VehicleSection {
     steering_gain: Option<Positive>,
     steering_rate: Option<Positive>,
     steering_torque: Option<Positive>,
+    patch_contact: Option<bool>,
     #[serde(default)]
     command: Vec<Spanned<CommandSection>>,
 }
@@ -1846,6 +1847,7 @@ impl Builder<'_> {
             steering_gain: v.steering_gain.map_or(defaults.steering_gain, |x| x.0),
             steering_rate: v.steering_rate.map_or(defaults.steering_rate, |x| x.0),
             steering_torque: v.steering_torque.map_or(defaults.steering_torque, |x| x.0),
+            patch_contact: v.patch_contact.unwrap_or(defaults.patch_contact),
         };
         let vehicle = Vehicle::attach(world, index, config)
             .map_err(|e| self.src.invalid(span.clone(), e.to_string()))?;
