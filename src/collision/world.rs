@@ -331,21 +331,22 @@ impl CollisionWorld {
     /// through the light wheel dofs, make the contact problem nearly singular (PGS then needs
     /// ~1000 sweeps). Not for shapes that must not tip about the point (a box on a face).
     pub fn set_patch_contact(&mut self, collider: usize, on: bool) -> Result<(), CollisionError> {
-        let count = self.colliders.len();
-        self.colliders
-            .get_mut(collider)
-            .ok_or(CollisionError::IndexOutOfRange { what: "colliders", index: collider, count })?
-            .patch = on;
+        self.collider_mut(collider)?.patch = on;
         Ok(())
+    }
+
+    fn collider_mut(&mut self, collider: usize) -> Result<&mut Collider, CollisionError> {
+        let count = self.colliders.len();
+        self.colliders.get_mut(collider).ok_or(CollisionError::IndexOutOfRange {
+            what: "colliders",
+            index: collider,
+            count,
+        })
     }
 
     /// Sets the groups and mask of a collider.
     pub fn set_filter(&mut self, collider: usize, filter: CollisionFilter) -> Result<(), CollisionError> {
-        let count = self.colliders.len();
-        self.colliders
-            .get_mut(collider)
-            .ok_or(CollisionError::IndexOutOfRange { what: "colliders", index: collider, count })?
-            .filter = filter;
+        self.collider_mut(collider)?.filter = filter;
         Ok(())
     }
 
