@@ -113,7 +113,7 @@ impl Collider {
     pub fn aabb(&self) -> ([f64; 3], [f64; 3]) {
         (self.aabb.mins.to_array(), self.aabb.maxs.to_array())
     }
-    /// Whether its contacts are one point per pair ([`CollisionWorld::set_patch_contact`]).
+    /// Whether its contacts are one point per pair and normal ([`CollisionWorld::set_patch_contact`]).
     pub fn is_patch_contact(&self) -> bool {
         self.patch
     }
@@ -324,9 +324,9 @@ impl CollisionWorld {
         }
     }
 
-    /// Makes every contact of a collider one point per pair, at the centre of the reduced set
-    /// (positions and depths averaged; the deepest point where the pair's points have several
-    /// normals): a tyre's contact patch. A thin wheel (a cylinder on its rim) otherwise touches
+    /// Makes every contact of a collider one point per pair and contact normal, at the centre of
+    /// the reduced points sharing that normal, with the deepest of their depths (a height field's
+    /// triangles under a wheel keep a point each): a tyre's contact patch. A thin wheel (a cylinder on its rim) otherwise touches
     /// flat ground at both rim edges, and when it scrubs in a turn those two rows, coupled
     /// through the light wheel dofs, make the contact problem nearly singular (PGS then needs
     /// ~1000 sweeps). Not for shapes that must not tip about the point (a box on a face).
