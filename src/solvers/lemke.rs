@@ -287,6 +287,7 @@ fn ratio_test(
     best
 }
 
+/// The product-form update of B⁻¹ and x for `column` entering at `row` (Gauss–Jordan step).
 fn pivot(b_inv: &mut DMatrix<f64>, x: &mut DVector<f64>, column: &DVector<f64>, row: usize) {
     let n = x.len();
     let p = column[row];
@@ -294,14 +295,23 @@ fn pivot(b_inv: &mut DMatrix<f64>, x: &mut DVector<f64>, column: &DVector<f64>, 
         b_inv[(row, j)] /= p;
     }
     x[row] /= p;
+    // Column by column: B⁻¹ is column-major, and each entry gets the same single update
+    // B⁻¹_ij −= col_i · B⁻¹_rj as row by row would give it (row-wise loops strode by n).
+    for j in 0..n {
+        let v = b_inv[(row, j)];
+        if v == 0.0 {
+            continue;
+        }
+        for (i, (b, &f)) in b_inv.column_mut(j).iter_mut().zip(column.iter()).enumerate() {
+            if i != row && f != 0.0 {
+                *b -= f * v;
+            }
+        }
+    }
+    let xr = x[row];
     for i in 0..n {
         if i != row && column[i] != 0.0 {
-            let f = column[i];
-            for j in 0..n {
-                let v = b_inv[(row, j)];
-                b_inv[(i, j)] -= f * v;
-            }
-            x[i] -= f * x[row];
+            x[i] -= column[i] * xr;
         }
     }
 }
