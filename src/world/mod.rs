@@ -408,7 +408,7 @@ impl World {
             b.asleep = false;
             b.idle_steps = 0;
             b.idle_time = 0.0;
-            b.speed_history.clear();
+            b.history_len = 0;
             self.collision.set_asleep(i, false);
         }
     }

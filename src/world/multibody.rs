@@ -97,7 +97,12 @@ pub struct Multibody {
     pub(crate) asleep: bool,
     pub(crate) idle_steps: usize,
     pub(crate) idle_time: f64,
-    pub(crate) speed_history: Vec<(f64, f64)>,
+    /// The last `average_samples` generalized velocities, flat (sample-major), for sleeping.
+    pub(crate) velocity_history: Vec<f64>,
+    /// Velocities recorded in `velocity_history` since the multibody last woke.
+    pub(crate) history_len: usize,
+    /// Scratch: the average of `velocity_history`.
+    pub(crate) velocity_average: DVector<f64>,
     pub(crate) col: usize,
     pub(crate) v_free: DVector<f64>,
     pub(crate) v_next: DVector<f64>,
@@ -133,7 +138,9 @@ impl Multibody {
             asleep: false,
             idle_steps: 0,
             idle_time: 0.0,
-            speed_history: Vec::new(),
+            velocity_history: Vec::new(),
+            history_len: 0,
+            velocity_average: DVector::zeros(0),
             col: 0,
             v_free: DVector::zeros(nv),
             v_next: DVector::zeros(nv),

@@ -57,11 +57,15 @@ impl SolverKind {
 pub struct SleepOptions {
     /// Whether bodies may fall asleep.
     pub enabled: bool,
-    /// Linear speed threshold (m/s) of body origins.
+    /// Linear speed threshold (m/s): free-joint origin speed and slider rates of the averaged
+    /// velocity.
     pub linear_threshold: f64,
-    /// Angular speed threshold (rad/s).
+    /// Angular speed threshold (rad/s): free-joint angular speed and joint rates of the averaged
+    /// velocity.
     pub angular_threshold: f64,
-    /// Steps over which speeds are averaged.
+    /// Steps over which the generalized velocity is averaged, as a vector (ODE's rule: jitter
+    /// that changes sign from step to step averages out, a steady creep does not), before its
+    /// speeds are compared with the thresholds.
     pub average_samples: usize,
     /// Idle steps before sleeping.
     pub idle_steps: usize,

@@ -69,19 +69,34 @@ pub(crate) fn update(world: &mut World) {
     let options = world.options.sleep;
     let h = world.options.dt;
     let samples = options.average_samples.max(1);
-    let step = world.steps as usize;
     for b in world.bodies.iter_mut().filter(|b| !b.asleep) {
-        let speed = speeds(&b.model, &b.state.v);
-        if b.speed_history.len() < samples {
-            b.speed_history.push(speed);
-        } else {
-            b.speed_history[step % samples] = speed;
+        // ODE's rule (dInternalHandleAutoDisabling): the velocities of the last `samples`
+        // steps are averaged as vectors and the average's speeds compared with the thresholds,
+        // so that solver jitter (a light hand's velocity flipping sign from step to step)
+        // averages out while a slow steady creep does not.
+        let nv = b.model.nv();
+        if b.velocity_history.len() != samples * nv {
+            b.velocity_history.clear();
+            b.velocity_history.resize(samples * nv, 0.0);
+            b.history_len = 0;
         }
-        let n = b.speed_history.len() as f64;
-        let (sum_l, sum_a) = b.speed_history.iter().fold((0.0, 0.0), |(l, a), (x, y)| (l + x, a + y));
-        let idle = b.speed_history.len() >= samples
-            && sum_l / n < options.linear_threshold
-            && sum_a / n < options.angular_threshold;
+        let slot = b.history_len % samples;
+        b.velocity_history[slot * nv..(slot + 1) * nv].copy_from_slice(b.state.v.as_slice());
+        b.history_len += 1;
+        let idle = b.history_len >= samples && {
+            if b.velocity_average.len() != nv {
+                b.velocity_average = nalgebra::DVector::zeros(nv);
+            }
+            b.velocity_average.fill(0.0);
+            for sample in b.velocity_history.chunks_exact(nv) {
+                for (a, x) in b.velocity_average.iter_mut().zip(sample) {
+                    *a += x;
+                }
+            }
+            b.velocity_average /= samples as f64;
+            let (linear, angular) = speeds(&b.model, &b.velocity_average);
+            linear < options.linear_threshold && angular < options.angular_threshold
+        };
         if idle && !b.kinematic {
             b.idle_steps += 1;
             b.idle_time += h;
@@ -121,4 +136,40 @@ pub(crate) fn update(world: &mut World) {
         }
     }
     world.islands = islands;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collision::MeshOptions;
+    use crate::math::Vec3;
+    use crate::model::{RigidInertia, Shape};
+    use crate::report::stability::free_body;
+    use crate::world::WorldOptions;
+
+    #[test]
+    fn velocities_are_averaged_as_vectors_so_jitter_sleeps_and_a_slow_creep_does_not() {
+        // Two cubes apart (two islands). The velocities are written as a jittering solver and a
+        // steady creep would leave them, without the wake-up that user velocity changes bring.
+        let mut w = World::new(WorldOptions { gravity: Vec3::zeros(), ..Default::default() });
+        let cube = || {
+            let size = Vec3::repeat(0.1);
+            free_body("b", Shape::Box { size }, RigidInertia::solid_box(1.0, size))
+        };
+        let (jitter, creep) = (
+            w.add_multibody("jitter", cube(), &MeshOptions::default()).unwrap(),
+            w.add_multibody("creep", cube(), &MeshOptions::default()).unwrap(),
+        );
+        assert_eq!(w.options.sleep.angular_threshold, 0.01);
+        let steps = w.options.sleep.average_samples + w.options.sleep.idle_steps + 5;
+        for k in 0..steps {
+            // ±0.05 rad/s from step to step: each speed is 5× the threshold, the average is 0.
+            w.bodies[jitter].state.v[5] = if k % 2 == 0 { 0.05 } else { -0.05 };
+            // A steady 0.02 rad/s: twice the threshold.
+            w.bodies[creep].state.v[5] = 0.02;
+            update(&mut w);
+        }
+        assert!(w.bodies[jitter].asleep, "jitter averages out: asleep");
+        assert!(!w.bodies[creep].asleep, "a steady creep above the threshold stays awake");
+    }
 }
