@@ -228,6 +228,76 @@ impl ProblemBuilder {
         })
     }
 
+    /// Whether rows `i..i + count` touch the same blocks in the same order, at most
+    /// [`MAX_CONTACT_SEGMENTS`] of them (a contact's normal and friction rows, written from the
+    /// same point rates of its one or two bodies).
+    fn same_blocks(&self, i: usize, count: usize) -> bool {
+        if i + count > self.len() {
+            return false;
+        }
+        let range = |r: usize| {
+            self.row_segments[r]..self.row_segments.get(r + 1).copied().unwrap_or(self.segment_block.len())
+        };
+        let first = &self.segment_block[range(i)];
+        first.len() <= MAX_CONTACT_SEGMENTS
+            && (i + 1..i + count).all(|r| &self.segment_block[range(r)] == first)
+    }
+
+    /// Rows `i..i + 3` (a contact's normal and friction rows, over the same blocks) into `sp`:
+    /// W for the three at once, as three lanes of one walk of the ancestor stretches
+    /// ([`TreeFactor::scale_lanes`]) — the walk's overhead, not its products, dominates on the
+    /// short stretches of a ragdoll's paths.
+    fn push_contact_rows<'f>(
+        &self,
+        i: usize,
+        factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+        lanes: &mut Vec<[f64; 4]>,
+        sp: &mut RowSparsity,
+    ) {
+        let segments = || (0..3).map(|r| self.segments(i + r));
+        // Lanes of every segment, one after the other; per segment the last non-zero entry of
+        // each row (None: the row is zero on that block).
+        lanes.clear();
+        let mut lasts = [[None; 3]; MAX_CONTACT_SEGMENTS];
+        let mut shape = [(0usize, 0usize); MAX_CONTACT_SEGMENTS];
+        let mut count = 0;
+        let [mut s0, mut s1, mut s2] = {
+            let mut it = segments();
+            [it.next().unwrap(), it.next().unwrap(), it.next().unwrap()]
+        };
+        while let (Some((b, _, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next()) {
+            let offset = lanes.len();
+            lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
+            lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
+            let last = lasts[count].iter().flatten().max().copied();
+            if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
+                factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
+            } else {
+                lanes[offset..].fill([0.0; 4]);
+            }
+            shape[count] = (b, offset);
+            count += 1;
+        }
+        for r in 0..3 {
+            let mut norm2 = 0.0;
+            for s in 0..count {
+                let Some(last) = lasts[s][r] else { continue };
+                let (b, offset) = shape[s];
+                let width = self.blocks[b].1;
+                let start = sp.w_values.len();
+                sp.w_values.extend(lanes[offset..offset + width].iter().map(|u| u[r]));
+                let span = match sp.w_values[start..=start + last].iter().position(|x| *x != 0.0) {
+                    Some(lo) => (lo, last + 1),
+                    None => (0, 0),
+                };
+                norm2 += push_segment(sp, b, start, span);
+            }
+            sp.row_norm2.push(norm2);
+            sp.run_start.push(sp.runs.len());
+            sp.row_start.push(sp.blocks_of_row.len());
+        }
+    }
+
     /// Registers a contact block whose normal row is `normal` (the two friction rows follow it).
     pub fn push_contact_block(&mut self, block: ContactBlock) -> usize {
         self.contacts.push(block);
@@ -326,17 +396,22 @@ impl ProblemBuilder {
         sp.run_start.clear();
         sp.run_start.push(0);
         sp.row_start.push(0);
-        for i in 0..n {
+        let mut lanes = std::mem::take(problem.lanes.0.get_mut());
+        let sp = &mut problem.sparsity;
+        let (mut i, mut next_contact) = (0, 0);
+        while i < n {
+            while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
+                next_contact += 1;
+            }
+            if self.contacts.get(next_contact).is_some_and(|c| c.normal == i) && self.same_blocks(i, 3) {
+                self.push_contact_rows(i, &factor_of, &mut lanes, sp);
+                i += 3;
+                continue;
+            }
             let mut norm2 = 0.0;
             for (b, _, segment) in self.segments(i) {
-                // A branch-free OR over the bits (±0 ignored) vectorizes.
-                if segment.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) == 0 {
-                    continue;
-                }
-                let Some(last) = segment.iter().rposition(|x| *x != 0.0) else { continue };
-                sp.blocks_of_row.push(b);
+                let Some(last) = last_nonzero(segment) else { continue };
                 let start = sp.w_values.len();
-                sp.segment_start.push(start);
                 sp.w_values.extend_from_slice(segment);
                 let span = match factor_of(b) {
                     Some((factor, first_dof)) => factor.scale_row(first_dof, last, &mut sp.w_values[start..]),
@@ -345,17 +420,14 @@ impl ProblemBuilder {
                         (0, 0)
                     }
                 };
-                sp.segment_span.push(span);
-                push_runs(&mut sp.runs, &sp.w_values, blocks[b].0, start, span);
-                norm2 += dot(
-                    &sp.w_values[start + span.0..start + span.1],
-                    &sp.w_values[start + span.0..start + span.1],
-                );
+                norm2 += push_segment(sp, b, start, span);
             }
             sp.row_norm2.push(norm2);
             sp.run_start.push(sp.runs.len());
             sp.row_start.push(sp.blocks_of_row.len());
+            i += 1;
         }
+        *problem.lanes.0.get_mut() = lanes;
         // Dense J and M⁻¹Jᵀ (for export and inspection), if asked.
         if dense {
             problem.minv_jt.fill(0.0);
@@ -404,6 +476,30 @@ impl ProblemBuilder {
         problem.origins.clone_from(&self.origins);
         problem.friction = self.friction;
     }
+}
+
+/// Most blocks a contact's rows touch (its two sides' multibodies).
+const MAX_CONTACT_SEGMENTS: usize = 2;
+
+/// The index of the last non-zero entry of a row segment (None: all zero). A branch-free OR
+/// over the bits (±0 ignored) first, which vectorizes: many segments are all zero.
+fn last_nonzero(segment: &[f64]) -> Option<usize> {
+    if segment.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) == 0 {
+        return None;
+    }
+    segment.iter().rposition(|x| *x != 0.0)
+}
+
+/// Records a scaled row segment of block `b` (W's entries at `sp.w_values[start..]`, zero
+/// outside `span`) as the next segment of the row being written, with its runs; returns its
+/// contribution to ‖W_i‖².
+fn push_segment(sp: &mut RowSparsity, b: usize, start: usize, span: (usize, usize)) -> f64 {
+    sp.blocks_of_row.push(b);
+    sp.segment_start.push(start);
+    sp.segment_span.push(span);
+    push_runs(&mut sp.runs, &sp.w_values, sp.blocks[b].0, start, span);
+    let w = &sp.w_values[start + span.0..start + span.1];
+    dot(w, w)
 }
 
 /// Builds the problem of a single multibody: `data.mass_matrix_factor` must hold the factor of
@@ -477,6 +573,39 @@ impl<'a> TreeFactor<'a> {
             *w *= s;
         }
         (lo, last + 1)
+    }
+
+    /// [`Self::scale_row`] for up to four rows of the same support at once, held as the lanes of
+    /// `u` (lane `a` of `u[k]` is row a's entry k): one walk of the ancestor stretches with a
+    /// four-wide update per entry. `last` is the last entry non-zero in any lane; the lanes are
+    /// scaled by D^{-1/2} up to it.
+    fn scale_lanes(&self, first_dof: usize, last: usize, u: &mut [[f64; 4]]) {
+        for k in (0..=last).rev() {
+            let uk = u[k];
+            let row = first_dof + k;
+            if uk == [0.0; 4] || !self.coupled[row] {
+                continue;
+            }
+            let column = self.column(row);
+            let (mut start, mut end) = (self.run_start[row], row);
+            loop {
+                for (w, l) in u[start - first_dof..end - first_dof].iter_mut().zip(&column[start..end]) {
+                    for a in 0..4 {
+                        w[a] -= l * uk[a];
+                    }
+                }
+                let next = self.dof_parent[start];
+                if next == NO_DOF {
+                    break;
+                }
+                (start, end) = (self.run_start[next], next + 1);
+            }
+        }
+        for (w, s) in u[..=last].iter_mut().zip(&self.inv_sqrt_d[first_dof..]) {
+            for x in w.iter_mut() {
+                *x *= s;
+            }
+        }
     }
 
     /// x ← L⁻¹ D^{-1/2} x on a block's slice (the inverse map of the row scaling W = J L⁻¹ D^{-1/2}, so

@@ -136,6 +136,8 @@ pub struct ConstraintProblem {
     pub origins: Vec<RowOrigin>,
     /// Wᵀλ of the matrix-free product in [`Self::velocities`] (nv entries, reused).
     pub(crate) scratch: Scratch,
+    /// A contact's three Jacobian rows as lanes during assembly (reused).
+    pub(crate) lanes: Scratch<[f64; 4]>,
     /// Which velocity blocks (multibodies or their root subtrees) each row touches, when the problem was assembled from
     /// blocks: lets iterative solvers work in velocity space with sparse rows. Empty otherwise.
     pub sparsity: RowSparsity,
@@ -216,22 +218,29 @@ impl Default for ConstraintProblem {
             origins: Vec::new(),
             sparsity: RowSparsity::default(),
             scratch: Scratch::default(),
+            lanes: Scratch::default(),
         }
     }
 }
 
 /// Reused scratch space inside a [`ConstraintProblem`]: not part of the problem's value (equal
 /// to every other, cloned empty).
-#[derive(Debug, Default)]
-pub(crate) struct Scratch(std::cell::RefCell<Vec<f64>>);
+#[derive(Debug)]
+pub(crate) struct Scratch<T = f64>(std::cell::RefCell<Vec<T>>);
 
-impl Clone for Scratch {
+impl<T> Default for Scratch<T> {
+    fn default() -> Self {
+        Self(std::cell::RefCell::new(Vec::new()))
+    }
+}
+
+impl<T> Clone for Scratch<T> {
     fn clone(&self) -> Self {
         Self::default()
     }
 }
 
-impl PartialEq for Scratch {
+impl<T> PartialEq for Scratch<T> {
     fn eq(&self, _: &Self) -> bool {
         true
     }
@@ -374,6 +383,7 @@ impl ConstraintProblem {
             origins: vec![RowOrigin::Other; laws.len()],
             sparsity: RowSparsity::default(),
             scratch: Scratch::default(),
+            lanes: Scratch::default(),
             laws,
             contacts,
             friction,

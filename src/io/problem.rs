@@ -354,6 +354,7 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
     let problem = ConstraintProblem {
         sparsity: Default::default(),
         scratch: Default::default(),
+        lanes: Default::default(),
         jacobian,
         minv_jt,
         delassus: matrix_from_rows(&file.delassus, n, n, "delassus")?,
