@@ -744,3 +744,71 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     }
     (s0 + s1) + (s2 + s3)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algorithms::jacobian::last_dof_of;
+    use crate::algorithms::{crba, factor_mass_matrix};
+    use crate::io::urdf::{load_file, UrdfOptions};
+    use rand::{Rng, SeedableRng};
+
+    /// Random entries on the path of `body` to the root (a Jacobian row of a point on it).
+    fn fill_path(model: &Model, body: usize, sign: f64, rng: &mut impl Rng, row: &mut RowMut<'_>) {
+        let mut k = last_dof_of(model, body);
+        while k != NO_DOF {
+            row[k] += sign * rng.random_range(-1.0..1.0);
+            k = model.dof_parent[k];
+        }
+    }
+
+    #[test]
+    fn contact_rows_scaled_as_lanes_give_the_delassus_matrix_of_a_dense_solve() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
+        let model = load_file(path, &UrdfOptions::floating()).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let q = model.random_configuration(&mut rng);
+        let mut data = Data::new(&model);
+        crba(&model, &mut data, &q).unwrap();
+        let m = data.mass_matrix.clone();
+        factor_mass_matrix(&model, &mut data).unwrap();
+        let nv = model.nv();
+        let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
+        // A self-contact between two limbs, a contact with the world, and a row of another kind
+        // between them (scaled alone), with a friction row whose entries are zero on part of
+        // the path.
+        let last = model.nbodies() - 1;
+        for (a, b) in [(last, Some(last / 2)), (last / 3, None)] {
+            let normal = builder.len();
+            for r in 0..3 {
+                let law = if r == 0 {
+                    RowLaw::Unilateral
+                } else {
+                    RowLaw::Friction { contact: builder.contact_count() }
+                };
+                let (_, mut row) = builder.push_row(law, 0.0, 0.0, RowOrigin::Other);
+                fill_path(&model, a, 1.0, &mut rng, &mut row);
+                if let Some(b) = b {
+                    fill_path(&model, b, -1.0, &mut rng, &mut row);
+                }
+                if r == 2 {
+                    row[0] = 0.0;
+                }
+            }
+            builder.push_contact_block(ContactBlock { normal, mu: 0.5, mu2: 0.5 });
+            let (_, mut row) = builder.push_row(RowLaw::Unilateral, 0.0, 0.0, RowOrigin::Other);
+            fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
+        }
+        let mut problem = ConstraintProblem::default();
+        let v_free = DVector::zeros(nv);
+        assemble_single(&builder, &model, &data, &v_free, &mut problem);
+        let j = problem.jacobian.clone();
+        let expected = &j * m.cholesky().unwrap().solve(&j.transpose());
+        let scale = expected.abs().max();
+        assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
+        for i in 0..builder.len() {
+            let norm2 = problem.sparsity.row_norm2[i];
+            assert!((norm2 - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
+        }
+    }
+}
