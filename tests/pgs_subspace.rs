@@ -73,3 +73,33 @@ fn subspace_steps_leave_quickly_converging_solves_alone() {
     assert!(info_a.iterations < 8, "warm start at the answer took {} sweeps", info_a.iterations);
     assert_eq!(a, b);
 }
+
+#[test]
+fn a_solve_settled_by_a_subspace_step_makes_the_next_one_try_it_early() {
+    // The next step's problem of a foot that stays on the ground: the same rows with the free
+    // velocity a little changed (1e-4 m/s on every row), warm-started at the last answer. The
+    // solver that settled the last solve by a subspace step tries one after 3 sweeps; a fresh
+    // solver waits for 8.
+    let problem = load("humanoid_fall_step0080_problem.json");
+    let mut solver = PgsSolver { subspace: true, ..PgsSolver::with_iterations(100) };
+    let mut lambda = DVector::zeros(problem.rows());
+    let first = solver.solve(&problem, &mut lambda).unwrap();
+    let mut next = problem.clone();
+    for (i, b) in next.bias.iter_mut().enumerate() {
+        *b += 1e-4 * if i % 2 == 0 { 1.0 } else { -0.5 };
+    }
+    let mut w = DVector::zeros(0);
+    let (mut early, mut fresh) = (lambda.clone(), lambda.clone());
+    let early_info = solver.solve(&next, &mut early).unwrap();
+    let fresh_info =
+        PgsSolver { subspace: true, ..PgsSolver::with_iterations(100) }.solve(&next, &mut fresh).unwrap();
+    let (r_early, r_fresh) =
+        (residuals(&next, &early, &mut w).exact(), residuals(&next, &fresh, &mut w).exact());
+    println!(
+        "first {} sweeps; next: early {} sweeps ({r_early:.2e} m/s), fresh {} sweeps ({r_fresh:.2e} m/s)",
+        first.iterations, early_info.iterations, fresh_info.iterations
+    );
+    assert!(r_early <= 1e-9 && r_fresh <= 1e-9);
+    assert!(early_info.iterations <= 3, "early: {} sweeps", early_info.iterations);
+    assert!(fresh_info.iterations >= 8, "fresh: {} sweeps", fresh_info.iterations);
+}

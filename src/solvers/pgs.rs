@@ -17,6 +17,11 @@ const SUBSPACE_PERIOD: usize = 8;
 /// The first subspace step comes once the sweeps have cost 1/this of its estimated cost.
 const SUBSPACE_COST_SHARE: usize = 4;
 
+/// Sweeps before the first subspace step when the previous solve was settled by one: the
+/// active set then usually carries over from the warm start, and the sweeps before the step
+/// only correct it where it changed.
+const SUBSPACE_EARLY: usize = 3;
+
 /// Projected Gauss–Seidel.
 #[derive(Clone, Debug)]
 pub struct PgsSolver {
@@ -44,7 +49,9 @@ pub struct PgsSolver {
     /// ([`super::Residuals::exact`]), and the sweeps go on from it. Redundant contact sets on
     /// stiff chains (a humanoid's foot), where sweeps crawl at a rate near 1, are then solved in
     /// a few sweeps. The first step comes after `subspace_period` sweeps, later if the sweeps
-    /// are cheap next to it (big problems of light rows), the next ones at doubling sweep counts,
+    /// are cheap next to it (big problems of light rows) — but after 3 when the solver's last
+    /// solve was settled by a subspace step (a foot staying on the ground: the next step's active
+    /// set is mostly the last one's) —, the next ones at doubling sweep counts,
     /// and one after the last sweep of an unconverged solve: problems the sweeps settle sooner
     /// never pay for it. Cone friction only (skipped with a pyramid), at most 128 rows.
     pub subspace: bool,
@@ -69,6 +76,8 @@ pub struct PgsWorkspace {
     gamma: Vec<f64>,
     direction: Vec<f64>,
     subspace: SubspaceWorkspace,
+    /// Whether the last solve ended on an accepted subspace step within the tolerance.
+    settled_by_subspace: bool,
 }
 
 impl Default for PgsSolver {
@@ -195,8 +204,17 @@ impl ConstraintSolver for PgsSolver {
         // sweep of an unconverged solve.
         let sweep_cost = if sparse { 2 * span_total } else { n * n }.max(1);
         let subspace_cost = n * n * n / 3 + if sparse { n * span_total } else { n * n };
-        let mut next_subspace =
+        let first_subspace =
             self.subspace_period.max(1).max(subspace_cost.div_ceil(SUBSPACE_COST_SHARE * sweep_cost));
+        // An early step is a one-off: if it does not settle the solve, the schedule goes on as
+        // without it (a hard problem, where the active set keeps changing, would otherwise pay
+        // for a dense solve and an NNCG restart at every doubling from the first sweep on).
+        let mut next_subspace = if self.workspace.settled_by_subspace {
+            SUBSPACE_EARLY.min(first_subspace)
+        } else {
+            first_subspace
+        };
+        let mut settled_by_subspace = false;
         for _ in 0..self.iterations {
             sweeps += 1;
             if self.accelerate {
@@ -292,7 +310,7 @@ impl ConstraintSolver for PgsSolver {
                 }
             }
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
-                next_subspace = 2 * sweeps;
+                next_subspace = if sweeps < first_subspace { first_subspace } else { 2 * sweeps };
                 let ws = &mut self.workspace.subspace;
                 if let SubspaceOutcome::Accepted(reached) = subspace_step(problem, lambda, ws, self.tolerance)
                 {
@@ -309,11 +327,13 @@ impl ConstraintSolver for PgsSolver {
                     // The iterate jumped: restart NNCG's directions.
                     last_gradient2 = 0.0;
                     if reached <= self.tolerance {
+                        settled_by_subspace = true;
                         break;
                     }
                 }
             }
         }
+        self.workspace.settled_by_subspace = settled_by_subspace;
         self.workspace.previous = previous;
         self.workspace.gamma = gamma;
         self.workspace.direction = direction;
