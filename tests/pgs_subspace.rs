@@ -103,3 +103,19 @@ fn a_solve_settled_by_a_subspace_step_makes_the_next_one_try_it_early() {
     assert!(early_info.iterations <= 3, "early: {} sweeps", early_info.iterations);
     assert!(fresh_info.iterations >= 8, "fresh: {} sweeps", fresh_info.iterations);
 }
+
+#[test]
+fn residuals_handed_to_the_chain_are_those_of_the_returned_impulses() {
+    // A solve that ends on a subspace step hands over the residuals it computed (the chain
+    // certifies with them): they must be exactly what the impulses it returns give.
+    for name in ["humanoid_fall_step0080_problem.json", "humanoid_fall_step0898_problem.json"] {
+        let problem = load(name);
+        let mut pgs = PgsSolver::with_iterations(100);
+        let mut lambda = DVector::zeros(problem.rows());
+        let info = pgs.solve(&problem, &mut lambda).unwrap();
+        let handed = info.residuals.unwrap_or_else(|| panic!("{name}: no residuals handed over"));
+        let mut w = DVector::zeros(0);
+        assert_eq!(handed, residuals(&problem, &lambda, &mut w), "{name}");
+        assert!(handed.exact() <= 1e-9, "{name}: {:.3e}", handed.exact());
+    }
+}

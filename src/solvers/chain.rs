@@ -69,8 +69,11 @@ impl SolverChain {
                 self.candidate.clone_from(lambda);
             }
             match solver.solve(problem, &mut self.candidate) {
-                Ok(info) => {
-                    let r = residuals(problem, &self.candidate, &mut self.w);
+                Ok(mut info) => {
+                    let r = match info.residuals.take() {
+                        Some(r) => r,
+                        None => residuals(problem, &self.candidate, &mut self.w),
+                    };
                     let certified = solver.certify(&r);
                     let last = k + 1 == count;
                     if certified <= self.tolerance || (last && self.accept_last) {

@@ -201,7 +201,7 @@ impl ConstraintSolver for ClarabelSolver {
             other => return Err(SolverError::Clarabel { status: format!("{other:?}") }),
         };
         *lambda = DVector::from_column_slice(&solver.solution.x);
-        Ok(SolveInfo { iterations: solver.solution.iterations as usize, note })
+        Ok(SolveInfo { iterations: solver.solution.iterations as usize, note, residuals: None })
     }
 
     fn certify(&self, residuals: &Residuals) -> f64 {

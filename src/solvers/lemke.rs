@@ -365,6 +365,6 @@ impl ConstraintSolver for LemkeSolver {
         *lambda = &lcp.c * &z + &lcp.c0;
         let note = matches!(problem.friction, FrictionModel::Cone)
             .then(|| format!("friction cone approximated by a {}-facet pyramid", self.facets));
-        Ok(SolveInfo { iterations: pivots, note })
+        Ok(SolveInfo { iterations: pivots, note, residuals: None })
     }
 }

@@ -67,6 +67,10 @@ pub struct SolveInfo {
     pub iterations: usize,
     /// Remarks (clarabel's AlmostSolved, Lemke's pyramid approximation of a cone, ...).
     pub note: Option<String>,
+    /// The residuals of the returned impulses, when the solver computed them on its way (PGS
+    /// ending on a subspace step): a [`SolverChain`] then certifies with them instead of
+    /// computing them again.
+    pub residuals: Option<Residuals>,
 }
 
 /// A solver of constraint problems.

@@ -215,6 +215,9 @@ impl ConstraintSolver for PgsSolver {
             first_subspace
         };
         let mut settled_by_subspace = false;
+        // The residuals of the final λ, when a subspace step computed them (they are handed to
+        // the chain, which would compute them again).
+        let mut certified = None;
         for _ in 0..self.iterations {
             sweeps += 1;
             if self.accelerate {
@@ -312,8 +315,13 @@ impl ConstraintSolver for PgsSolver {
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
                 next_subspace = if sweeps < first_subspace { first_subspace } else { 2 * sweeps };
                 let ws = &mut self.workspace.subspace;
-                if let SubspaceOutcome::Accepted(reached) = subspace_step(problem, lambda, ws, self.tolerance)
-                {
+                let outcome = subspace_step(problem, lambda, ws, self.tolerance);
+                if let SubspaceOutcome::Converged(_) = outcome {
+                    // The sweeps' change is above the tolerance but λ already meets it.
+                    certified = ws.residuals.take();
+                    break;
+                }
+                if let SubspaceOutcome::Accepted(reached) = outcome {
                     lambda.copy_from(&ws.candidate);
                     if sparse {
                         let mut dv = dv.borrow_mut();
@@ -328,6 +336,7 @@ impl ConstraintSolver for PgsSolver {
                     last_gradient2 = 0.0;
                     if reached <= self.tolerance {
                         settled_by_subspace = true;
+                        certified = ws.residuals.take();
                         break;
                     }
                 }
@@ -338,7 +347,7 @@ impl ConstraintSolver for PgsSolver {
         self.workspace.gamma = gamma;
         self.workspace.direction = direction;
         self.workspace.dv = dv.into_inner();
-        Ok(SolveInfo { iterations: sweeps, note: None })
+        Ok(SolveInfo { iterations: sweeps, note: None, residuals: certified })
     }
 }
 
