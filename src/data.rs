@@ -73,6 +73,10 @@ pub struct Data {
     /// free body whose origin is its centre of mass, on principal axes) are skipped by the
     /// constraint assembly's row scaling.
     pub factor_row_coupled: Vec<bool>,
+    /// The factorization's working rows: per dof k, M's entries (then L's and D's) on k's
+    /// ancestors, root first, and on k itself, packed one row after the other (see
+    /// [`crate::algorithms::factor_mass_matrix`]).
+    pub(crate) factor_packed: Vec<f64>,
     /// A 6×nv frame Jacobian, output of [`crate::algorithms::frame_jacobian`].
     pub jacobian: DMatrix<f64>,
     /// Centre of mass in the world (m).
@@ -113,6 +117,7 @@ impl Data {
             mass_matrix_factor: DMatrix::zeros(nv, nv),
             factor_inv_sqrt_d: DVector::zeros(nv),
             factor_row_coupled: vec![true; nv],
+            factor_packed: vec![0.0; model.dof_path.len() + nv],
             jacobian: DMatrix::zeros(6, nv),
             com: Vec3::zeros(),
             kinetic_energy: 0.0,

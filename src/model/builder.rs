@@ -267,6 +267,8 @@ impl ModelBuilder {
             dof_joint: Vec::new(),
             dof_parent: Vec::new(),
             dof_run_start: Vec::new(),
+            dof_path: Vec::new(),
+            dof_path_start: Vec::new(),
             lower_position_limit: DVector::zeros(0),
             upper_position_limit: DVector::zeros(0),
             velocity_limit: DVector::zeros(0),
@@ -336,6 +338,17 @@ impl ModelBuilder {
         for k in 0..model.nv {
             let start = if k > 0 && model.dof_parent[k] == k - 1 { model.dof_run_start[k - 1] } else { k };
             model.dof_run_start.push(start);
+        }
+        model.dof_path_start.push(0);
+        for k in 0..model.nv {
+            let first = model.dof_path.len();
+            let mut j = model.dof_parent[k];
+            while j != NO_DOF {
+                model.dof_path.push(j);
+                j = model.dof_parent[j];
+            }
+            model.dof_path[first..].reverse();
+            model.dof_path_start.push(model.dof_path.len());
         }
         Ok(model)
     }

@@ -66,6 +66,12 @@ pub struct Model {
     /// so walks to the root run over contiguous stretches (a free joint's six dofs, a ball
     /// joint's three, a hinge chain numbered depth-first).
     pub(crate) dof_run_start: Vec<usize>,
+    /// The ancestors of each dof, root first: dof k's are `dof_path[dof_path_start[k]..
+    /// dof_path_start[k + 1]]`. An ancestor's path is a prefix of its descendants' (a path to the
+    /// root is a chain), which the mass-matrix factorization's packed rows rely on.
+    pub(crate) dof_path: Vec<usize>,
+    /// Offsets into `dof_path`, one per dof plus one.
+    pub(crate) dof_path_start: Vec<usize>,
     pub(crate) lower_position_limit: DVector<f64>,
     pub(crate) upper_position_limit: DVector<f64>,
     pub(crate) velocity_limit: DVector<f64>,
