@@ -254,17 +254,13 @@ impl ProblemBuilder {
         lanes: &mut Vec<[f64; 4]>,
         sp: &mut RowSparsity,
     ) {
-        let segments = || (0..3).map(|r| self.segments(i + r));
         // Lanes of every segment, one after the other; per segment the last non-zero entry of
         // each row (None: the row is zero on that block).
         lanes.clear();
         let mut lasts = [[None; 3]; MAX_CONTACT_SEGMENTS];
         let mut shape = [(0usize, 0usize); MAX_CONTACT_SEGMENTS];
         let mut count = 0;
-        let [mut s0, mut s1, mut s2] = {
-            let mut it = segments();
-            [it.next().unwrap(), it.next().unwrap(), it.next().unwrap()]
-        };
+        let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
         while let (Some((b, _, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next()) {
             let offset = lanes.len();
             lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
