@@ -122,7 +122,7 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
     // which is cheaper to check than n² entries.
     let sp = &problem.sparsity;
     let finite_a = if sp.is_empty() {
-        problem.delassus.iter().all(|x| x.is_finite())
+        all_finite(problem.delassus.as_slice())
     } else {
         all_finite(&sp.w_values)
             && (problem.is_matrix_free() || (0..n).all(|i| problem.delassus[(i, i)].is_finite()))
