@@ -101,6 +101,8 @@ pub(crate) struct SubspaceWorkspace {
     /// λ and w of those rows at the start.
     start: Vec<f64>,
     w_start: Vec<f64>,
+    /// λ's change over those rows since the start, in a later round.
+    delta: Vec<f64>,
     /// Their rows of W (dense, rows × nv) when A is formed from W here, and the column range
     /// [lo, hi) outside which each is zero.
     w_range: Vec<(usize, usize)>,
@@ -136,7 +138,7 @@ impl SubspaceWorkspace {
         }
         self.units.reserve(n.saturating_sub(self.units.len()));
         self.contact_row.reserve(n.saturating_sub(self.contact_row.len()));
-        for v in [&mut self.start, &mut self.w_start] {
+        for v in [&mut self.start, &mut self.w_start, &mut self.delta] {
             v.reserve(n.saturating_sub(v.len()));
         }
         self.local.reserve(n.saturating_sub(self.local.len()));
@@ -228,10 +230,11 @@ pub(crate) fn subspace_step(
         // The units only lose rows between rounds (an impulse reaching its bound leaves them),
         // so the first round's rows cover every later one.
         if round > 0 {
+            ws.delta.clear();
+            ws.delta.extend(ws.rows.iter().zip(&ws.start).map(|(&r, l0)| candidate[r] - l0));
             for a in 0..m {
                 let g = &ws.gram[a * m..(a + 1) * m];
-                let change: f64 =
-                    g.iter().zip(&ws.rows).zip(&ws.start).map(|((g, &r), l0)| g * (candidate[r] - l0)).sum();
+                let change: f64 = g.iter().zip(&ws.delta).map(|(g, d)| g * d).sum();
                 ws.w[ws.rows[a]] = ws.w_start[a] + change;
             }
             if !active_units(problem, &mut candidate, ws) {
@@ -400,7 +403,7 @@ enum Blocking {
 fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     let s = ws.units.len();
     let m = ws.rows.len();
-    if s > MAX_SUBSPACE {
+    if s > MAX_SUBSPACE || m == 0 {
         return false;
     }
     // (A + R) times each unit's column over the rows (m per unit), then K[u][v] as the unit
@@ -424,10 +427,31 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     let mut largest: f64 = 0.0;
     for u in 0..s {
         let equation = ws.units[u].equation();
-        for v in 0..s {
-            let gc = &ws.gc[v * m..(v + 1) * m];
-            ws.k[u * s + v] =
-                equation.iter().filter(|(_, a)| *a != 0.0).map(|&(r, a)| a * gc[ws.local[r]]).sum();
+        // The equation's terms with a non-zero coefficient, by local row (a zero coefficient
+        // may name a row outside `rows`); K's row u is then one or two strided reads of gc
+        // per entry, with no lookup of the rows inside the loop over v.
+        let mut terms = [(0usize, 0.0f64); 2];
+        let mut count = 0;
+        for &(r, a) in equation.iter().filter(|(_, a)| *a != 0.0) {
+            terms[count] = (ws.local[r], a);
+            count += 1;
+        }
+        let k_row = &mut ws.k[u * s..(u + 1) * s];
+        let gc = ws.gc.chunks_exact(m);
+        match count {
+            1 => {
+                let (l, a) = terms[0];
+                for (k, gc) in k_row.iter_mut().zip(gc) {
+                    *k = a * gc[l];
+                }
+            }
+            2 => {
+                let ((l0, a0), (l1, a1)) = (terms[0], terms[1]);
+                for (k, gc) in k_row.iter_mut().zip(gc) {
+                    *k = a0 * gc[l0] + a1 * gc[l1];
+                }
+            }
+            _ => k_row.fill(0.0),
         }
         let g: f64 = equation.iter().map(|&(r, a)| a * ws.w[r]).sum();
         if let Unit::Angle(c) = ws.units[u] {
