@@ -103,10 +103,12 @@ pub(crate) struct SubspaceWorkspace {
     w_start: Vec<f64>,
     /// λ's change over those rows since the start, in a later round.
     delta: Vec<f64>,
-    /// Their rows of W (dense, rows × nv) when A is formed from W here, and the column range
-    /// [lo, hi) outside which each is zero.
+    /// The column range [lo, hi) outside which each of those rows of W is zero, the groups of
+    /// rows (first, count, lane offset) and their rows of W as lanes, when the Gram is formed
+    /// from W here ([`fill_gram`]).
     w_range: Vec<(usize, usize)>,
-    w_rows: Vec<f64>,
+    groups: Vec<(usize, usize, usize)>,
+    w_lanes: Vec<[f64; GROUP]>,
     /// A + R over those rows (row-major).
     gram: Vec<f64>,
     /// (A + R) times each unit's column, over `rows` (units × rows).
@@ -312,16 +314,21 @@ pub(crate) fn subspace_step(
     }
 }
 
-/// Most entries of the dense copy of W's rows that [`fill_gram`] makes (rows × velocity
+/// Most entries of the lane copy of W's rows that [`fill_gram`] makes (rows × velocity
 /// columns): beyond it (hundreds of multibodies in one world) the Gram is formed entry by entry.
 const MAX_DENSE_W: usize = 1 << 16;
 
-/// A + R over `ws.rows` into `ws.gram`. When A is matrix-free: W's rows copied into dense rows
-/// of nv entries (zero outside their runs), each with the column range it spans, and each entry
-/// of the Gram a dot product over the overlap of two rows' ranges — one product per pair, with
-/// none of the per-entry matching of blocks and spans of [`ConstraintProblem::delassus_entry`]
-/// (about half the instructions of forming it entry by entry over a humanoid episode's subspace
-/// steps, callgrind). Else (A formed, or a world too wide for the copy) entry by entry.
+/// Rows of W packed side by side as the lanes of one group in [`fill_gram`].
+const GROUP: usize = 4;
+
+/// A + R over `ws.rows` into `ws.gram`. When A is matrix-free: W's rows grouped, up to
+/// [`GROUP`] consecutive rows with the same column range (a contact's normal and tangent rows
+/// act on the same bodies), each group copied as lanes (`w_lanes[col]` holds its rows' entries
+/// in that column), and each block of the Gram between two groups one pass over the overlap of
+/// their ranges with a 4 × 4 outer-product update per column — the column's entries are loaded
+/// once for up to sixteen products, where one dot product per pair of rows loaded them once per
+/// pair (a humanoid episode's subspace steps formed 666 short dots per step). Else (A formed,
+/// or a world too wide for the copy) entry by entry.
 fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     let m = ws.rows.len();
     ws.gram.clear();
@@ -329,31 +336,63 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     let sp = &problem.sparsity;
     let nv = sp.nv;
     if problem.is_matrix_free() && m * nv <= MAX_DENSE_W {
-        ws.w_rows.clear();
-        ws.w_rows.resize(m * nv, 0.0);
+        // Each row's column range [lo, hi) (empty: lo = hi).
         ws.w_range.clear();
-        for (a, &r) in ws.rows.iter().enumerate() {
+        for &r in &ws.rows {
             let (mut lo, mut hi) = (nv, 0);
             for (col, w) in sp.row_spans(r) {
-                ws.w_rows[a * nv + col..a * nv + col + w.len()].copy_from_slice(w);
                 lo = lo.min(col);
                 hi = hi.max(col + w.len());
             }
-            ws.w_range.push((lo, hi.max(lo)));
+            ws.w_range.push(if lo < hi { (lo, hi) } else { (0, 0) });
         }
-        for a in 0..m {
+        // Groups: (first row, rows, offset of its lanes in `w_lanes`).
+        ws.groups.clear();
+        ws.w_lanes.clear();
+        let mut a = 0;
+        while a < m {
+            let range = ws.w_range[a];
+            let mut count = 1;
+            while count < GROUP && a + count < m && ws.w_range[a + count] == range {
+                count += 1;
+            }
+            let offset = ws.w_lanes.len();
+            ws.w_lanes.resize(offset + range.1 - range.0, [0.0; GROUP]);
+            for lane in 0..count {
+                for (col, w) in sp.row_spans(ws.rows[a + lane]) {
+                    let at = offset + col - range.0;
+                    for (x, v) in ws.w_lanes[at..at + w.len()].iter_mut().zip(w) {
+                        x[lane] = *v;
+                    }
+                }
+            }
+            ws.groups.push((a, count, offset));
+            a += count;
+        }
+        for (g, &(a, count_a, offset_a)) in ws.groups.iter().enumerate() {
             let (lo_a, hi_a) = ws.w_range[a];
-            let wa = &ws.w_rows[a * nv..(a + 1) * nv];
-            for b in a..m {
+            for &(b, count_b, offset_b) in &ws.groups[g..] {
                 let (lo_b, hi_b) = ws.w_range[b];
                 let (lo, hi) = (lo_a.max(lo_b), hi_a.min(hi_b));
-                let g = if lo < hi {
-                    crate::constraints::dot(&wa[lo..hi], &ws.w_rows[b * nv + lo..b * nv + hi])
-                } else {
-                    0.0
-                };
-                ws.gram[a * m + b] = g;
-                ws.gram[b * m + a] = g;
+                if lo >= hi {
+                    continue;
+                }
+                let ua = &ws.w_lanes[offset_a + lo - lo_a..offset_a + hi - lo_a];
+                let ub = &ws.w_lanes[offset_b + lo - lo_b..offset_b + hi - lo_b];
+                let mut block = [[0.0; GROUP]; GROUP];
+                for (x, y) in ua.iter().zip(ub) {
+                    for (row, &xi) in block.iter_mut().zip(x) {
+                        for (acc, &yj) in row.iter_mut().zip(y) {
+                            *acc += xi * yj;
+                        }
+                    }
+                }
+                for (i, row) in block.iter().enumerate().take(count_a) {
+                    for (j, &value) in row.iter().enumerate().take(count_b) {
+                        ws.gram[(a + i) * m + b + j] = value;
+                        ws.gram[(b + j) * m + a + i] = value;
+                    }
+                }
             }
         }
     } else {
