@@ -119,13 +119,16 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
         ));
     }
     // With the sparse segments at hand, A is finite if they are (A is made of their products),
-    // which is cheaper to check than n² entries.
+    // which is cheaper to check than n² entries; and a row's segments are finite if their
+    // squared norm (summed by the assembly over the spans the solvers read) is — one value per
+    // row instead of the nv-wide segments (a square overflowing to infinity flags a row of
+    // W above 1e154, of no use either).
     let sp = &problem.sparsity;
+    let finite_w = if sp.row_norm2.len() == n { all_finite(&sp.row_norm2) } else { all_finite(&sp.w_values) };
     let finite_a = if sp.is_empty() {
         all_finite(problem.delassus.as_slice())
     } else {
-        all_finite(&sp.w_values)
-            && (problem.is_matrix_free() || (0..n).all(|i| problem.delassus[(i, i)].is_finite()))
+        finite_w && (problem.is_matrix_free() || (0..n).all(|i| problem.delassus[(i, i)].is_finite()))
     };
     if !finite_a || !all_finite(problem.bias.as_slice()) || !all_finite(problem.regularization.as_slice()) {
         return bad("A, b or R holds NaN or infinity".into());
