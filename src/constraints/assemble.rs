@@ -251,10 +251,8 @@ impl ProblemBuilder {
         &self,
         i: usize,
         factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
-        v_free: &[f64],
         lanes: &mut Vec<[f64; 4]>,
         sp: &mut RowSparsity,
-        bias: &mut [f64],
     ) {
         // Lanes of every segment, one after the other; per segment the last non-zero entry of
         // each row (None: the row is zero on that block).
@@ -267,13 +265,6 @@ impl ProblemBuilder {
             let offset = lanes.len();
             lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
             lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
-            // J v_free while J is at hand, over each row's entries up to its last non-zero.
-            let first = self.blocks[b].0;
-            for (r, j) in [j0, j1, j2].into_iter().enumerate() {
-                if let Some(last) = lasts[count][r] {
-                    bias[i + r] += dot(&j[..=last], &v_free[first..=first + last]);
-                }
-            }
             let last = lasts[count].iter().flatten().max().copied();
             if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
                 factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
@@ -403,24 +394,19 @@ impl ProblemBuilder {
         sp.row_start.push(0);
         let mut lanes = std::mem::take(problem.lanes.0.get_mut());
         let sp = &mut problem.sparsity;
-        // The rows' J v_free, summed in the loop below (then less the targets).
-        let bias = problem.bias.as_mut_slice();
-        bias.fill(0.0);
-        let v = v_free.as_slice();
         let (mut i, mut next_contact) = (0, 0);
         while i < n {
             while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
                 next_contact += 1;
             }
             if self.contacts.get(next_contact).is_some_and(|c| c.normal == i) && self.same_blocks(i, 3) {
-                self.push_contact_rows(i, &factor_of, v, &mut lanes, sp, bias);
+                self.push_contact_rows(i, &factor_of, &mut lanes, sp);
                 i += 3;
                 continue;
             }
             let mut norm2 = 0.0;
-            for (b, first, segment) in self.segments(i) {
+            for (b, _, segment) in self.segments(i) {
                 let Some(last) = last_nonzero(segment) else { continue };
-                bias[i] += dot(&segment[..=last], &v[first..=first + last]);
                 let start = sp.w_values.len();
                 sp.w_values.extend_from_slice(segment);
                 let span = match factor_of(b) {
@@ -477,7 +463,7 @@ impl ProblemBuilder {
             }
         }
         for i in 0..n {
-            problem.bias[i] -= self.targets[i];
+            problem.bias[i] = self.row_dot(i, v_free.as_slice()) - self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }
