@@ -4,7 +4,7 @@
 //! together and projected onto the cone (or pyramid) of the current normal impulse. Warm-started
 //! from the impulses passed in (the last step's, matched by the caller).
 
-use super::residuals::{norm2, pyramid_facet};
+use super::residuals::{norm2, pyramid_facet, residuals_at_velocities};
 use super::subspace::{subspace_step, SubspaceOutcome, SubspaceWorkspace};
 use super::{check_problem, ConstraintSolver, SolveInfo, SolverError};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
@@ -78,6 +78,8 @@ pub struct PgsWorkspace {
     subspace: SubspaceWorkspace,
     /// Whether the last solve ended on an accepted subspace step within the tolerance.
     settled_by_subspace: bool,
+    /// The row velocities of the final λ, for its residuals.
+    velocities: Vec<f64>,
 }
 
 impl Default for PgsSolver {
@@ -314,8 +316,16 @@ impl ConstraintSolver for PgsSolver {
             }
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
                 next_subspace = if sweeps < first_subspace { first_subspace } else { 2 * sweeps };
+                // The row velocities at λ from the kept s = Wᵀλ (one pass over W's spans, where
+                // forming them afresh takes two).
+                let velocities = sparse.then(|| {
+                    let velocities = &mut self.workspace.velocities;
+                    velocities.clear();
+                    velocities.extend((0..n).map(|i| w(i, lambda)));
+                    &velocities[..]
+                });
                 let ws = &mut self.workspace.subspace;
-                let outcome = subspace_step(problem, lambda, ws, self.tolerance);
+                let outcome = subspace_step(problem, lambda, velocities, ws, self.tolerance);
                 if let SubspaceOutcome::Converged(_) = outcome {
                     // The sweeps' change is above the tolerance but λ already meets it.
                     certified = ws.residuals.take();
@@ -341,6 +351,14 @@ impl ConstraintSolver for PgsSolver {
                     }
                 }
             }
+        }
+        if certified.is_none() && sparse {
+            // The sweeps kept s = Wᵀλ up to date: the row velocities of the chain's certificate
+            // cost one pass over W's spans instead of the two of forming them afresh.
+            let velocities = &mut self.workspace.velocities;
+            velocities.clear();
+            velocities.extend((0..n).map(|i| w(i, lambda)));
+            certified = Some(residuals_at_velocities(problem, lambda, velocities));
         }
         self.workspace.settled_by_subspace = settled_by_subspace;
         self.workspace.previous = previous;

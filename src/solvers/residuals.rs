@@ -97,6 +97,17 @@ pub fn residuals(problem: &ConstraintProblem, lambda: &DVector<f64>, w: &mut DVe
         *w = DVector::zeros(n);
     }
     problem.velocities(lambda, w);
+    residuals_at_velocities(problem, lambda, w.as_slice())
+}
+
+/// [`residuals`] with the row velocities `w = (A + R) λ + b` at λ already computed (a solver
+/// that keeps Wᵀλ gets them with one product with W instead of two).
+pub(crate) fn residuals_at_velocities(
+    problem: &ConstraintProblem,
+    lambda: &DVector<f64>,
+    w: &[f64],
+) -> Residuals {
+    let n = problem.rows();
     let d = |i: usize| (problem.delassus_entry(i, i) + problem.regularization[i]).max(f64::MIN_POSITIVE);
     let mut r = Residuals::default();
     let frictionless = problem.contacts.iter().all(|c| c.mu == 0.0 && c.mu2 == 0.0);

@@ -25,7 +25,7 @@
 //! from it, correcting the active set where the step left it wrong.
 
 use super::pgs::project_friction;
-use super::residuals::{contact_of_normal, norm2, residuals};
+use super::residuals::{contact_of_normal, norm2, residuals, residuals_at_velocities};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
 
@@ -182,6 +182,7 @@ pub(crate) enum SubspaceOutcome {
 pub(crate) fn subspace_step(
     problem: &ConstraintProblem,
     lambda: &DVector<f64>,
+    velocities: Option<&[f64]>,
     ws: &mut SubspaceWorkspace,
     good_enough: f64,
 ) -> SubspaceOutcome {
@@ -190,7 +191,13 @@ pub(crate) fn subspace_step(
         return SubspaceOutcome::Skipped;
     }
     ws.reserve(n);
-    let current = residuals(problem, lambda, &mut ws.w);
+    let current = match velocities {
+        Some(w) => {
+            ws.w.as_mut_slice().copy_from_slice(w);
+            residuals_at_velocities(problem, lambda, w)
+        }
+        None => residuals(problem, lambda, &mut ws.w),
+    };
     ws.residuals = None;
     if current.exact() <= good_enough {
         let exact = current.exact();
@@ -206,7 +213,11 @@ pub(crate) fn subspace_step(
         ws.candidate = candidate;
         return SubspaceOutcome::Skipped;
     }
-    problem.velocities(&candidate, &mut ws.w);
+    // ws.w holds the velocities at λ: still those of the candidate unless the projection or
+    // the cone placement of sliding contacts moved it.
+    if candidate != *lambda {
+        problem.velocities(&candidate, &mut ws.w);
+    }
     // Only the rows the units touch move or are read: A + R over them, w kept up to date
     // from their changes (the other rows' λ stay as they are).
     ws.local.clear();
