@@ -327,8 +327,13 @@ impl ConstraintSolver for PgsSolver {
                 let ws = &mut self.workspace.subspace;
                 let outcome = subspace_step(problem, lambda, velocities, ws, self.tolerance);
                 if let SubspaceOutcome::Converged(_) = outcome {
-                    // The sweeps' change is above the tolerance but λ already meets it.
+                    // The sweeps' change is above the tolerance but λ already meets it (a
+                    // redundant contact set: the sweeps move λ along its internal forces). The
+                    // next solve checks early again: waiting for the regular schedule there
+                    // costs the sweeps up to it (box_stack10.xml: −2.7 % instructions per
+                    // episode; with 12 subspace rounds a box stack alternated 1 and 69 sweeps).
                     certified = ws.residuals.take();
+                    settled_by_subspace = true;
                     break;
                 }
                 if let SubspaceOutcome::Accepted(reached) = outcome {
