@@ -78,7 +78,8 @@ pub struct PgsWorkspace {
     subspace: SubspaceWorkspace,
     /// Whether the last solve ended on an accepted subspace step within the tolerance.
     settled_by_subspace: bool,
-    /// The row velocities of the final λ, for its residuals.
+    /// Row velocities at λ from the kept Wᵀλ: for a subspace step's start and the final
+    /// residual certificate.
     velocities: Vec<f64>,
 }
 
@@ -183,6 +184,12 @@ impl ConstraintSolver for PgsSolver {
             } else {
                 a.column(i).dot(lambda) + problem.regularization[i] * lambda[i] + problem.bias[i]
             }
+        };
+        // All rows' velocities at λ from the kept s = Wᵀλ (sparse sweeps only): one pass over
+        // W's spans, where forming them afresh (`ConstraintProblem::velocities`) takes two.
+        let velocities_at = |lambda: &DVector<f64>, out: &mut Vec<f64>| {
+            out.clear();
+            out.extend((0..n).map(|i| w(i, lambda)));
         };
         let moved = |i: usize, delta: f64| {
             if sparse && delta != 0.0 {
@@ -316,13 +323,9 @@ impl ConstraintSolver for PgsSolver {
             }
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
                 next_subspace = if sweeps < first_subspace { first_subspace } else { 2 * sweeps };
-                // The row velocities at λ from the kept s = Wᵀλ (one pass over W's spans, where
-                // forming them afresh takes two).
                 let velocities = sparse.then(|| {
-                    let velocities = &mut self.workspace.velocities;
-                    velocities.clear();
-                    velocities.extend((0..n).map(|i| w(i, lambda)));
-                    &velocities[..]
+                    velocities_at(lambda, &mut self.workspace.velocities);
+                    &self.workspace.velocities[..]
                 });
                 let ws = &mut self.workspace.subspace;
                 let outcome = subspace_step(problem, lambda, velocities, ws, self.tolerance);
@@ -358,12 +361,8 @@ impl ConstraintSolver for PgsSolver {
             }
         }
         if certified.is_none() && sparse {
-            // The sweeps kept s = Wᵀλ up to date: the row velocities of the chain's certificate
-            // cost one pass over W's spans instead of the two of forming them afresh.
-            let velocities = &mut self.workspace.velocities;
-            velocities.clear();
-            velocities.extend((0..n).map(|i| w(i, lambda)));
-            certified = Some(residuals_at_velocities(problem, lambda, velocities));
+            velocities_at(lambda, &mut self.workspace.velocities);
+            certified = Some(residuals_at_velocities(problem, lambda, &self.workspace.velocities));
         }
         self.workspace.settled_by_subspace = settled_by_subspace;
         self.workspace.previous = previous;
