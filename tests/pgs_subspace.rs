@@ -119,3 +119,27 @@ fn residuals_handed_to_the_chain_are_those_of_the_returned_impulses() {
         assert!(handed.exact() <= 1e-9, "{name}: {:.3e}", handed.exact());
     }
 }
+
+#[test]
+fn residuals_from_the_sum_the_sweeps_keep_match_a_fresh_evaluation() {
+    // On a matrix-free problem PGS keeps s = Wᵀλ through its sweeps and hands over the
+    // residuals of its answer from it (the chain certifies with them): a ragdoll lying on the
+    // ground (models/ragdoll_fall.toml after 1 s), plain sweeps (no subspace step), cold.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/ragdoll_fall.toml");
+    let mut scene = gelenk::io::scene::load_file(&path).unwrap();
+    for _ in 0..500 {
+        scene.world.step().unwrap();
+    }
+    let problem = scene.world.problem().clone();
+    assert!(problem.rows() > 30 && problem.is_matrix_free(), "{} rows", problem.rows());
+    for sweeps in [5, 200] {
+        let mut pgs = PgsSolver { subspace: false, tolerance: 1e-9, ..PgsSolver::with_iterations(sweeps) };
+        let mut lambda = DVector::zeros(problem.rows());
+        let info = pgs.solve(&problem, &mut lambda).unwrap();
+        let handed = info.residuals.expect("residuals from the kept sum");
+        let fresh = residuals(&problem, &lambda, &mut DVector::zeros(0));
+        // Equal up to the rounding of the kept sum.
+        let (a, b) = (handed.exact(), fresh.exact());
+        assert!((a - b).abs() <= 1e-12 + 1e-9 * b, "{sweeps} sweeps: handed {a:.6e}, fresh {b:.6e}");
+    }
+}

@@ -67,8 +67,9 @@ pub struct SolveInfo {
     pub iterations: usize,
     /// Remarks (clarabel's AlmostSolved, Lemke's pyramid approximation of a cone, ...).
     pub note: Option<String>,
-    /// The residuals of the returned impulses, when the solver computed them on its way (PGS
-    /// ending on a subspace step): a [`SolverChain`] then certifies with them instead of
+    /// The residuals of the returned impulses, when the solver computed them on its way (PGS:
+    /// from its subspace step, or from the Wᵀλ its sweeps keep — equal to a fresh evaluation up
+    /// to the rounding of that sum): a [`SolverChain`] then certifies with them instead of
     /// computing them again.
     pub residuals: Option<Residuals>,
 }
