@@ -76,7 +76,8 @@ pub struct PgsWorkspace {
     gamma: Vec<f64>,
     direction: Vec<f64>,
     subspace: SubspaceWorkspace,
-    /// Whether the last solve ended on an accepted subspace step within the tolerance.
+    /// Whether the last solve ended on a subspace step within the tolerance: an accepted one,
+    /// or one that found λ already converged.
     settled_by_subspace: bool,
     /// Row velocities at λ from the kept Wᵀλ: for a subspace step's start and the final
     /// residual certificate.

@@ -169,7 +169,9 @@ pub(crate) enum SubspaceOutcome {
 }
 
 /// One subspace-minimisation step from `lambda` (see the module docs): on acceptance the
-/// candidate is left in `ws.candidate` for the caller to take.
+/// candidate is left in `ws.candidate` for the caller to take. `velocities`, when the caller
+/// has them, are the row velocities `(A + R) λ + b` at `lambda` (PGS forms them from the
+/// Wᵀλ its sweeps keep); else the step forms them.
 ///
 /// The reduced solve is a direction, followed as far as the active set allows (a primal
 /// active-set step): when a free impulse would leave its set on the way — a pressing normal
