@@ -5,7 +5,7 @@ back to back can. Not part of CI (needs `pip install mujoco`).
 
 Usage: python3 benches/mujoco_peers.py ../shared/peers/box_stack10.xml ../shared/peers/humanoid_fall.xml
 
-Per scene: 5 episodes of 2500 steps from the initial state (`mj_step` with `nstep`, the loop
+Per scene: 5 episodes of 2500 steps from the initial state (keyframe 0 if the file has one) (`mj_step` with `nstep`, the loop
 runs in C), the mean µs per step of each episode and their median: the same statistic as
 gelenk's "episode mean".
 """
@@ -20,6 +20,9 @@ for path in sys.argv[1:]:
     means = []
     for _ in range(5):
         data = mujoco.MjData(model)
+        if model.nkey > 0:
+            # A scene with an initial velocity (benches/ragdoll_mjcf.py) keeps it in key 0.
+            mujoco.mj_resetDataKeyframe(model, data, 0)
         mujoco.mj_forward(model, data)
         start = time.perf_counter()
         mujoco.mj_step(model, data, nstep=2500)

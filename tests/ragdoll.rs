@@ -208,16 +208,26 @@ fn a_powered_ragdoll_holds_its_pose_with_bounded_torque() {
         model.difference(&mb.state.q, &target, &mut d);
         d.rows(6, model.nv() - 6).norm() / ((model.nv() - 6) as f64).sqrt()
     };
-    let (limp, _) = fall(&passive, 3.0);
+    // Where a ragdoll lands and how it lies is chaotic (the passive one ends 0.23–0.54 rad RMS
+    // from the T-pose over five seeds): the two are compared by their means over the seeds
+    // (the shipped one among them), every powered one is held to an absolute bound.
+    let seeds = [1, 2, 3, 4, 7];
+    let (mut limp_dev, mut strong_dev) = (0.0, 0.0);
+    for seed in seeds {
+        let with_seed = |text: &str| text.replace("seed = 7", &format!("seed = {seed}"));
+        let limp = deviation(&fall(&with_seed(&passive), 3.0).0);
+        let strong = deviation(&fall(&with_seed(&powered), 3.0).0);
+        println!("seed {seed}: RMS joint deviation from the T-pose: passive {limp:.3} rad, powered {strong:.3} rad");
+        // Lying on the ground the T-pose cannot always be held: the ground pushes the toes and
+        // hands of a ragdoll lying on its side, and the bounded servos yield at impact.
+        assert!(strong < 0.3, "seed {seed}: the powered ragdoll lost its pose: {strong} rad RMS");
+        limp_dev += limp / seeds.len() as f64;
+        strong_dev += strong / seeds.len() as f64;
+    }
+    // Measured: passive 0.395 rad, powered 0.115 rad on average (below 0.001 on seeds 2 and 3,
+    // which end lying flat in the T-pose); a servo that does nothing has a ratio near 1.
+    assert!(strong_dev < 0.6 * limp_dev, "powered {strong_dev} vs passive {limp_dev} (means)");
     let (mut strong, f) = fall(&powered, 3.0);
-    let (limp_dev, strong_dev) = (deviation(&limp), deviation(&strong));
-    println!("RMS joint deviation from the T-pose: passive {limp_dev:.3} rad, powered {strong_dev:.3} rad");
-    // Lying on the ground the T-pose cannot be exact: the ground pushes the toes and hands, and
-    // the bounded servos yield at impact. Measured: passive 0.54 rad (0.75 before the ragdoll's
-    // joints got passive damping), powered 0.26 rad RMS; the bounds leave ~20 % for solver
-    // changes while still failing a servo that does nothing (a ratio near 1).
-    assert!(strong_dev < 0.3, "the powered ragdoll lost its pose: {strong_dev} rad RMS");
-    assert!(strong_dev < 0.6 * limp_dev, "powered {strong_dev} vs passive {limp_dev}");
     assert!(f.max_violation < ONE_DEGREE);
     // Every motor impulse is within its dof's torque bound times the step.
     let servo = strong.world.multibody(0).pose_servo().unwrap().clone();

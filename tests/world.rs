@@ -103,6 +103,48 @@ fn resting_box_stays_still() {
     assert!(drift < 1e-6, "drift {drift}");
 }
 
+/// A ball 15 mm above the ground with a 50 mm contact margin: the contact is reported either
+/// way, but gets rows only when the step can close its gap (`Speculation`): not at rest, yes
+/// at 5 m/s downwards (10 mm per step, doubled), and yes at rest when every contact within the
+/// margin is asked for. A ball at 10 m/s 8 mm up (20 mm per step) is stopped by its speculative
+/// row without sinking into the ground.
+#[test]
+fn speculative_contacts_get_rows_only_when_the_step_can_close_them() {
+    use gelenk::constraints::Speculation;
+    let r = 0.05;
+    let ball_above = |gap: f64, vz: f64, speculation: Speculation| {
+        let mut options = exact_options();
+        options.collision.margin = 0.05;
+        options.speculation = speculation;
+        options.sleep.enabled = false;
+        let mut w = world_with_ground(options, Vec3::z());
+        let ball = w
+            .add_multibody(
+                "ball",
+                lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
+                &MeshOptions::default(),
+            )
+            .unwrap();
+        w.multibody_mut(ball).state.q[2] = r + gap;
+        w.multibody_mut(ball).state.v[2] = vz;
+        let stats = w.step().unwrap().clone();
+        (stats.contacts, stats.rows, w.multibody(ball).state.q[2] - r)
+    };
+    let default = Speculation::default();
+    assert_eq!(default, Speculation { always_within: 0.002, speed_factor: 2.0 });
+    let (contacts, rows, _) = ball_above(0.015, 0.0, default);
+    assert_eq!((contacts, rows), (1, 0), "at rest, 15 mm up");
+    let (contacts, rows, _) = ball_above(0.015, -5.0, default);
+    assert_eq!((contacts, rows), (1, 3), "at 5 m/s, 15 mm up");
+    let (contacts, rows, _) = ball_above(0.015, 0.0, Speculation::ALL);
+    assert_eq!((contacts, rows), (1, 3), "every contact within the margin");
+    let (contacts, rows, _) = ball_above(0.0015, 0.0, default);
+    assert_eq!((contacts, rows), (1, 3), "within always_within");
+    let (_, rows, height) = ball_above(0.008, -10.0, default);
+    assert_eq!(rows, 3);
+    assert!(height.abs() < 1e-9, "the fast ball stops on the ground: height {height}");
+}
+
 #[test]
 fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
     let mut options = exact_options();

@@ -82,6 +82,7 @@
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
 //! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"` (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
+//! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
 //! | | `sleep` | let resting bodies sleep (true) |
 //! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
@@ -1051,6 +1052,8 @@ struct WorldSection {
     accept_last: Option<bool>,
     friction: Option<FrictionName>,
     margin: Option<NonNegative>,
+    speculative_within: Option<NonNegative>,
+    speculative_factor: Option<PositiveOrInfinite>,
     collide_joined_bodies: Option<bool>,
     sleep: Option<bool>,
     integrator: Option<IntegratorName>,
@@ -1370,6 +1373,9 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
         ..defaults
     };
     options.collision.margin = w.margin.map_or(options.collision.margin, |x| x.0);
+    options.speculation.always_within =
+        w.speculative_within.map_or(options.speculation.always_within, |x| x.0);
+    options.speculation.speed_factor = w.speculative_factor.map_or(options.speculation.speed_factor, |x| x.0);
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);

@@ -27,7 +27,7 @@ use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows_between,
     add_motor_row, ConstraintProblem, ContactParameters, FrictionModel, LoopClosure, ProblemBuilder,
-    RowOrigin, TreeFactor,
+    RowOrigin, Speculation, TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -291,6 +291,11 @@ impl World {
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
     pub fn set_integrator(&mut self, integrator: IntegratorKind) {
         self.options.integrator = integrator;
+    }
+
+    /// Replaces which contacts still apart get rows ([`WorldOptions::speculation`]).
+    pub fn set_speculation(&mut self, speculation: Speculation) {
+        self.options.speculation = speculation;
     }
 
     /// Replaces the sleeping parameters; disabling sleep wakes every multibody.
@@ -826,14 +831,23 @@ impl World {
         let mut builder = std::mem::replace(&mut self.builder, ProblemBuilder::new(0, self.options.friction));
         let bodies = &self.bodies;
         let contacts = std::mem::take(&mut self.contacts);
+        let (v, v_free, speculation) = (&self.v_all, &self.v_free_all, self.options.speculation);
         add_contact_rows_with(
             &mut builder,
             |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
             &contacts,
             0,
-            &self.v_all,
+            v,
             h,
             |c| self.parameters_of(c),
+            |c, rates| {
+                if speculation.keeps(c.distance, 0.0, h) {
+                    return true;
+                }
+                let relative =
+                    |v: &DVector<f64>| rates.iter().map(|(col, r)| r * v[*col]).sum::<Vec3>().norm();
+                speculation.keeps(c.distance, relative(v).max(relative(v_free)), h)
+            },
         );
         self.contacts = contacts;
         for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {

@@ -2,7 +2,7 @@
 //! sleeping parameters.
 
 use crate::collision::CollisionOptions;
-use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters};
+use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters, Speculation};
 use crate::integrators::IntegratorKind;
 use crate::math::Vec3;
 use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, PgsSolver, SolverChain};
@@ -97,6 +97,9 @@ pub struct WorldOptions {
     pub gravity: Vec3,
     /// Collision options (contact margin, joined bodies).
     pub collision: CollisionOptions,
+    /// Which contacts within the margin but still apart get rows: those the step can close
+    /// ([`Speculation`]; [`Speculation::ALL`]: every one).
+    pub speculation: Speculation,
     /// Friction cone or pyramid.
     pub friction: FrictionModel,
     /// Solver chain, first choice first.
@@ -128,6 +131,7 @@ impl Default for WorldOptions {
             max_substeps: 8,
             gravity: Vec3::new(0.0, 0.0, -9.81),
             collision: CollisionOptions::default(),
+            speculation: Speculation::default(),
             friction: FrictionModel::Cone,
             solvers: vec![SolverKind::Pgs { iterations: 100, omega: 1.0 }, SolverKind::Clarabel],
             tolerance: 1e-6,
