@@ -68,6 +68,7 @@ impl SolverChain {
             } else {
                 self.candidate.clone_from(lambda);
             }
+            solver.set_certified_tolerance(self.tolerance);
             match solver.solve(problem, &mut self.candidate) {
                 Ok(mut info) => {
                     let r = match info.residuals.take() {

@@ -89,6 +89,10 @@ pub trait ConstraintSolver {
     fn certify(&self, residuals: &Residuals) -> f64 {
         residuals.exact()
     }
+    /// Tells the solver the tolerance (m/s) its answer is certified against
+    /// ([`SolverChain::tolerance`], before each solve): a solver that measures its own
+    /// residual on the way may stop once it is well within it. Ignored by default.
+    fn set_certified_tolerance(&mut self, _tolerance: f64) {}
 }
 
 /// Whether every entry is finite: x·0 is 0 for a finite x and NaN otherwise, summed in four

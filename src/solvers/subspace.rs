@@ -159,7 +159,7 @@ pub(crate) enum SubspaceOutcome {
     /// Not attempted, or no reduced solve succeeded: pyramid friction, nothing free, too many
     /// free impulses, or a singular reduced system.
     Skipped,
-    /// Not needed: λ itself is within `good_enough` (its exact residual), its residuals are in
+    /// Not needed: λ itself is within `converged` (its exact residual), its residuals are in
     /// `workspace.residuals`.
     Converged(f64),
     /// The projected solve did not lower the exact residual (which it reports).
@@ -171,7 +171,9 @@ pub(crate) enum SubspaceOutcome {
 /// One subspace-minimisation step from `lambda` (see the module docs): on acceptance the
 /// candidate is left in `ws.candidate` for the caller to take. `velocities`, when the caller
 /// has them, are the row velocities `(A + R) λ + b` at `lambda` (PGS forms them from the
-/// Wᵀλ its sweeps keep); else the step forms them.
+/// Wᵀλ its sweeps keep); else the step forms them. λ needs no step if its exact residual is
+/// within `converged` (or `good_enough`, the larger); the step's Newton rounds aim at
+/// `good_enough`.
 ///
 /// The reduced solve is a direction, followed as far as the active set allows (a primal
 /// active-set step): when a free impulse would leave its set on the way — a pressing normal
@@ -187,6 +189,7 @@ pub(crate) fn subspace_step(
     velocities: Option<&[f64]>,
     ws: &mut SubspaceWorkspace,
     good_enough: f64,
+    converged: f64,
 ) -> SubspaceOutcome {
     let n = problem.rows();
     if problem.friction != FrictionModel::Cone || n > MAX_SUBSPACE {
@@ -201,7 +204,7 @@ pub(crate) fn subspace_step(
         None => residuals(problem, lambda, &mut ws.w),
     };
     ws.residuals = None;
-    if current.exact() <= good_enough {
+    if current.exact() <= converged.max(good_enough) {
         let exact = current.exact();
         ws.residuals = Some(current);
         return SubspaceOutcome::Converged(exact);
