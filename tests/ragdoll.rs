@@ -218,8 +218,8 @@ fn a_powered_ragdoll_holds_its_pose_with_bounded_torque() {
         let limp = deviation(&fall(&with_seed(&passive), 3.0).0);
         let strong = deviation(&fall(&with_seed(&powered), 3.0).0);
         println!("seed {seed}: RMS joint deviation from the T-pose: passive {limp:.3} rad, powered {strong:.3} rad");
-        // Lying on the ground the T-pose cannot always be held: the ground pushes the toes and
-        // hands of a ragdoll lying on its side, and the bounded servos yield at impact.
+        // Lying on the ground the T-pose cannot always be held (the ground pushes the toes and
+        // hands), and the bounded servos yield at impact.
         assert!(strong < 0.3, "seed {seed}: the powered ragdoll lost its pose: {strong} rad RMS");
         limp_dev += limp / seeds.len() as f64;
         strong_dev += strong / seeds.len() as f64;

@@ -177,8 +177,8 @@ impl Speculation {
     /// Every contact within the collision margin gets rows.
     pub const ALL: Self = Self { always_within: f64::INFINITY, speed_factor: f64::INFINITY };
 
-    /// Whether a contact at signed distance `distance` (m) whose points move apart at the
-    /// relative speed bound `speed` (m/s) gets rows in a step of `h` (s).
+    /// Whether a contact at signed distance `distance` (m) whose two points move relative to
+    /// each other at up to `speed` (m/s) gets rows in a step of `h` (s).
     pub fn keeps(&self, distance: f64, speed: f64, h: f64) -> bool {
         distance <= self.always_within
             || self.speed_factor == f64::INFINITY

@@ -23,11 +23,12 @@ const SUBSPACE_COST_SHARE: usize = 4;
 const SUBSPACE_EARLY: usize = 3;
 
 /// Share of a chain's certified tolerance that PGS aims for ([`PgsSolver::residual_goal`]): a
-/// creeping ragdoll's warm-started solves reach ~1.3e-7 m/s in 3 sweeps, well within the 1e-6
-/// a chain certifies; a subspace step to 1e-10 on each of them cost more than the rest of the
-/// step (ragdoll seeds 1–7: −12.5 % instructions over an episode, as many steps above the
-/// tolerance). A tenth leaves the next warm start good enough: at 3e-7 the shipped ragdoll's
-/// misses went from 3 to 30.
+/// sliding or creeping ragdoll's warm-started solves are within ~1e-7 m/s after a few sweeps,
+/// well within the 1e-6 a chain certifies, and a subspace step on to 1e-10 and beyond (two
+/// reduced factorizations of ~48 unknowns) cost more than the rest of the step (ragdoll seeds
+/// 1–7: −11.6 % instructions over an episode, 112 steps above the tolerance against 111). A
+/// tenth leaves the next warm start good enough: at 3e-7 the shipped ragdoll's misses went
+/// from 3 to 30.
 pub const CERTIFIED_SHARE: f64 = 0.1;
 
 /// Projected Gauss–Seidel.
