@@ -1,0 +1,41 @@
+//! When does the pile of 20 ragdolls (`models/ragdoll_pile.toml`) fall asleep, for another
+//! seed of its drop? Issue 7 asks for all asleep within 10 s; the shipped seed is one sample of
+//! a chaotic pile, and this measures others.
+//!
+//! ```sh
+//! cargo run --release --example pile_sleep -- 3 16    # seed, seconds to step at most
+//! ```
+//!
+//! Prints the first time (s) at which every ragdoll is asleep, or that none came within the
+//! time, and the wall time taken.
+
+use std::error::Error;
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn Error>> {
+    let mut args = std::env::args().skip(1);
+    let seed: u64 = args.next().ok_or("usage: pile_sleep SEED [SECONDS]")?.parse()?;
+    let seconds: f64 = args.next().map_or(Ok(16.0), |s| s.parse())?;
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
+    let text = std::fs::read_to_string(format!("{models}/ragdoll_pile.toml"))?;
+    let shipped = "seed = 3";
+    if !text.contains(shipped) {
+        return Err(format!("models/ragdoll_pile.toml no longer has `{shipped}`").into());
+    }
+    let mut scene = gelenk::io::scene::load_str(&text.replace(shipped, &format!("seed = {seed}")), models)?;
+    let count = scene.world.multibody_count();
+    let dt = scene.world.options().dt;
+    let start = Instant::now();
+    for step in 1..=(seconds / dt).round() as usize {
+        if scene.world.step()?.asleep == count {
+            println!(
+                "seed {seed}: all {count} asleep at {:.3} s ({:.1} s wall)",
+                step as f64 * dt,
+                start.elapsed().as_secs_f64()
+            );
+            return Ok(());
+        }
+    }
+    println!("seed {seed}: not all asleep within {seconds} s ({:.1} s wall)", start.elapsed().as_secs_f64());
+    Ok(())
+}
