@@ -20,6 +20,16 @@ fn lone_body(name: &str, shape: Shape, inertia: RigidInertia) -> gelenk::Model {
     b.build().unwrap()
 }
 
+/// Adds a free 1 kg solid ball of radius `r` named "ball"; returns its multibody index.
+fn add_ball(w: &mut World, r: f64) -> usize {
+    w.add_multibody(
+        "ball",
+        lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
+        &MeshOptions::default(),
+    )
+    .unwrap()
+}
+
 fn world_with_ground(options: WorldOptions, normal: Vec3) -> World {
     let mut w = World::new(options);
     w.add_static("ground", &Shape::HalfSpace { normal }, Transform::identity(), 0).unwrap();
@@ -44,13 +54,7 @@ fn ball_rebounds_to_epsilon_squared_height() {
     options.sleep.enabled = false;
     let mut w = world_with_ground(options, Vec3::z());
     let r = 0.05;
-    let ball = w
-        .add_multibody(
-            "ball",
-            lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
-            &MeshOptions::default(),
-        )
-        .unwrap();
+    let ball = add_ball(&mut w, r);
     let h0 = 1.0;
     w.multibody_mut(ball).state.q[2] = r + h0;
     let mut apex: f64 = 0.0;
@@ -118,13 +122,7 @@ fn speculative_contacts_get_rows_only_when_the_step_can_close_them() {
         options.speculation = speculation;
         options.sleep.enabled = false;
         let mut w = world_with_ground(options, Vec3::z());
-        let ball = w
-            .add_multibody(
-                "ball",
-                lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
-                &MeshOptions::default(),
-            )
-            .unwrap();
+        let ball = add_ball(&mut w, r);
         w.multibody_mut(ball).state.q[2] = r + gap;
         w.multibody_mut(ball).state.v[2] = vz;
         let stats = w.step().unwrap().clone();
@@ -324,13 +322,7 @@ fn a_sleeping_stack_sleeps_and_wakes_when_hit() {
     }
     assert_eq!(w.multibody(2).state.q, top, "asleep bodies do not move");
     // A ball thrown at the top box wakes it.
-    let ball = w
-        .add_multibody(
-            "ball",
-            lone_body("ball", Shape::Sphere { radius: 0.05 }, RigidInertia::solid_sphere(1.0, 0.05)),
-            &MeshOptions::default(),
-        )
-        .unwrap();
+    let ball = add_ball(&mut w, 0.05);
     {
         let s = &mut w.multibody_mut(ball).state;
         s.q[0] = -0.3;
@@ -401,13 +393,7 @@ fn ball_on_incline(mu: f64, theta: f64) -> (f64, f64) {
     let down_slope = Vec3::new(theta.cos(), 0.0, -theta.sin());
     let mut w = world_with_ground(options, normal);
     let r = 0.1;
-    let ball = w
-        .add_multibody(
-            "ball",
-            lone_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
-            &MeshOptions::default(),
-        )
-        .unwrap();
+    let ball = add_ball(&mut w, r);
     w.multibody_mut(ball).state.q.rows_mut(0, 3).copy_from(&(normal * r));
     let x0: Vec3 = w.multibody(ball).state.q.fixed_rows::<3>(0).into();
     let (mut samples, mut slip) = (Vec::new(), 0.0f64);
