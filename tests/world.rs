@@ -3,7 +3,8 @@
 //! pendulum stops at its joint limit, a motor reaches its target, two runs are bit-identical,
 //! the accumulator caps substeps, a sleeping stack sleeps and wakes when hit, a ball rolls down
 //! an incline at (5/7) g sin θ (or slides at g (sin θ − μ cos θ)), a four-bar linkage stays
-//! closed to 1e-8 m, a spinning free body keeps its straight-line velocity.
+//! closed to 1e-8 m, a spinning free body keeps its straight-line velocity, a speculative
+//! contact gets rows only when the step can close its gap.
 
 use gelenk::collision::MeshOptions;
 use gelenk::constraints::ContactParameters;
