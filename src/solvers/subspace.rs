@@ -172,7 +172,7 @@ pub(crate) enum SubspaceOutcome {
 /// candidate is left in `ws.candidate` for the caller to take. `velocities`, when the caller
 /// has them, are the row velocities `(A + R) λ + b` at `lambda` (PGS forms them from the
 /// Wᵀλ its sweeps keep); else the step forms them. λ needs no step if its exact residual is
-/// within `converged` (or `good_enough`, the larger); the step's Newton rounds aim at
+/// within `converged` (≥ `good_enough`, PGS's residual goal); the step's Newton rounds aim at
 /// `good_enough`.
 ///
 /// The reduced solve is a direction, followed as far as the active set allows (a primal
@@ -204,7 +204,7 @@ pub(crate) fn subspace_step(
         None => residuals(problem, lambda, &mut ws.w),
     };
     ws.residuals = None;
-    if current.exact() <= converged.max(good_enough) {
+    if current.exact() <= converged {
         let exact = current.exact();
         ws.residuals = Some(current);
         return SubspaceOutcome::Converged(exact);
