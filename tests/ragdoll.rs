@@ -183,10 +183,11 @@ fn a_pile_of_four_ragdolls_sleeps_within_ten_seconds() {
     check_pile(&pile_text(4), 4, true);
 }
 
-/// The whole scene (77 s in a non-LTO release build on this machine kind, less with LTO).
-/// Measured (session 8, shoulders with 0.5 N·m joint friction, velocity vectors averaged for
-/// sleeping): all asleep from 7.50 s on; before, a shoulder twisted on at ~0.2 rad/s (the
-/// forearm's weight against the joint damping alone) and the pile slept only at 15.2 s.
+/// The whole scene (~30 s in a non-LTO release build on this machine kind since session 12,
+/// less with LTO). Measured (session 8, shoulders with 0.5 N·m joint friction, velocity
+/// vectors averaged for sleeping): all asleep from 7.50 s on (7.34 s since session 12's
+/// speculative-contact filter); before, a shoulder twisted on at ~0.2 rad/s (the forearm's
+/// weight against the joint damping alone) and the pile slept only at 15.2 s.
 #[test]
 fn a_pile_of_twenty_ragdolls_stays_finite_above_ground_and_sleeps_within_ten_seconds() {
     check_pile(&scene_text("ragdoll_pile.toml"), 20, true);
