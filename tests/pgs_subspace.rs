@@ -143,3 +143,66 @@ fn residuals_from_the_sum_the_sweeps_keep_match_a_fresh_evaluation() {
         assert!((a - b).abs() <= 1e-12 + 1e-9 * b, "{sweeps} sweeps: handed {a:.6e}, fresh {b:.6e}");
     }
 }
+
+#[test]
+fn subspace_steps_solve_pyramid_friction_exactly_in_linear_rounds() {
+    // The same two humanoid steps with the friction set a 4- and an 8-facet pyramid: contacts on
+    // a facet or at a vertex make the reduced system linear (no Newton rounds on a direction).
+    // Lemke pivots the same pyramid to an exact answer: PGS-SM must reach rounding level too,
+    // where plain PGS stalls, and both answers must give the same row velocities (the impulses
+    // of a redundant contact set are not unique; the motion is).
+    use gelenk::constraints::FrictionModel;
+    use gelenk::solvers::LemkeSolver;
+    for name in ["humanoid_fall_step0080_problem.json", "humanoid_fall_step0898_problem.json"] {
+        for facets in [4, 8] {
+            let mut problem = load(name);
+            problem.friction = FrictionModel::Pyramid { facets };
+            let (with, sweeps) = solve(&problem, 100, true);
+            let (plain, _) = solve(&problem, 100, false);
+            println!(
+                "{name} pyramid{facets}: PGS-SM {with:.2e} m/s after {sweeps} sweeps, plain {plain:.2e}"
+            );
+            assert!(with <= 1e-9, "{name} pyramid{facets}: PGS-SM residual {with:.3e} after {sweeps} sweeps");
+            assert!(sweeps <= 60, "{name} pyramid{facets}: PGS-SM took {sweeps} sweeps");
+            assert!(plain > 1e-6, "{name} pyramid{facets}: plain PGS reached {plain:.3e}: no longer a stall");
+            let mut pgs = PgsSolver { tolerance: 1e-12, ..PgsSolver::with_iterations(100) };
+            let mut lambda = DVector::zeros(problem.rows());
+            pgs.solve(&problem, &mut lambda).unwrap();
+            let mut lemke_lambda = DVector::zeros(problem.rows());
+            LemkeSolver::default().solve(&problem, &mut lemke_lambda).unwrap();
+            let (mut w, mut w_lemke) = (DVector::zeros(0), DVector::zeros(0));
+            let lemke = residuals(&problem, &lemke_lambda, &mut w_lemke).exact();
+            residuals(&problem, &lambda, &mut w);
+            let gap = (&w - &w_lemke).amax();
+            assert!(lemke <= 1e-9, "{name} pyramid{facets}: Lemke {lemke:.3e}");
+            assert!(
+                gap <= 1e-8,
+                "{name} pyramid{facets}: row velocities differ from Lemke's by {gap:.3e} m/s"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_warm_start_worse_than_zero_is_dropped() {
+    // MuJoCo's guard: a warm start λ₀ with f(λ₀) = ½ λ₀ᵀ(A + R)λ₀ + bᵀλ₀ > f(0) = 0 is replaced by
+    // zero. Fifty times the foot's answer (an impact's impulses carried into a resting step):
+    // the solve then takes exactly the sweeps of a cold one, to the same answer; a tenth more
+    // than the answer beats zero and converges from where it is.
+    let problem = load("humanoid_fall_step0080_problem.json");
+    let settle = |lambda: &mut DVector<f64>| {
+        let mut pgs = PgsSolver { tolerance: 1e-12, ..PgsSolver::with_iterations(100) };
+        let info = pgs.solve(&problem, lambda).unwrap();
+        (info.iterations, residuals(&problem, lambda, &mut DVector::zeros(0)).exact())
+    };
+    let mut cold = DVector::zeros(problem.rows());
+    let (cold_sweeps, cold_residual) = settle(&mut cold);
+    let mut inflated = &cold * 50.0;
+    let (sweeps, residual) = settle(&mut inflated);
+    assert_eq!((sweeps, residual), (cold_sweeps, cold_residual));
+    assert_eq!(inflated, cold);
+    let mut near = &cold * 1.1;
+    let (near_sweeps, near_residual) = settle(&mut near);
+    assert!(near_residual <= 1e-9, "{near_residual:.3e} after {near_sweeps} sweeps");
+    assert!(near_sweeps <= cold_sweeps, "kept warm start: {near_sweeps} sweeps, cold {cold_sweeps}");
+}

@@ -15,7 +15,7 @@
 //! The relaxation's price: a sliding contact's normal velocity comes out as `μ‖u_t‖` instead of
 //! 0 (the bodies "hover" while sliding). The residuals show it; the documentation says it.
 
-use super::residuals::{pyramid_facet, Residuals};
+use super::residuals::{pyramid_facet, pyramid_offset_and_half, Residuals};
 use super::{check_problem, ConstraintSolver, SolveInfo, SolverError};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use clarabel::algebra::CscMatrix;
@@ -101,7 +101,7 @@ pub fn cone_program(problem: &ConstraintProblem) -> ConeProgram {
                 ]);
             }
             FrictionModel::Pyramid { facets } => {
-                let offset = (std::f64::consts::PI / facets as f64).cos();
+                let offset = pyramid_offset_and_half(facets).0;
                 for j in 0..facets {
                     let (nx, ny) = pyramid_facet(facets, j);
                     nonneg.push((vec![(t1, nx / c.mu), (t2, ny / c.mu2), (nr, -offset)], 0.0));

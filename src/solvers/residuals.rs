@@ -66,10 +66,35 @@ impl Residuals {
     }
 }
 
-/// The pyramid's facet normals in the (λ₁/μ, λ₂/μ₂) plane and the facet offset cos(π/k).
-pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
-    let angle = std::f64::consts::PI * (2 * j + 1) as f64 / k as f64;
+/// (cos, sin) of the angle `π m / k`: exact constants for the 4-facet pyramid (MuJoCo's, and
+/// the one residuals of every pyramid contact evaluate several times per solve), trigonometry
+/// otherwise.
+fn pyramid_angle(m: usize, k: usize) -> (f64, f64) {
+    use std::f64::consts::FRAC_1_SQRT_2 as H;
+    if k == 4 {
+        const EIGHTHS: [(f64, f64); 8] =
+            [(1.0, 0.0), (H, H), (0.0, 1.0), (-H, H), (-1.0, 0.0), (-H, -H), (0.0, -1.0), (H, -H)];
+        return EIGHTHS[m % 8];
+    }
+    let angle = std::f64::consts::PI * m as f64 / k as f64;
     (angle.cos(), angle.sin())
+}
+
+/// Outward normal of facet j of the k-facet friction pyramid in the (λ₁/μ, λ₂/μ₂) plane, at
+/// angle π(2j + 1)/k; the facet lies at offset [`pyramid_offset`] times the normal impulse.
+pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
+    pyramid_angle(2 * j + 1, k)
+}
+
+/// Vertex j of the k-facet friction pyramid per unit normal impulse, at angle 2πj/k (facet j
+/// runs from vertex j to vertex j + 1).
+pub(crate) fn pyramid_vertex(k: usize, j: usize) -> (f64, f64) {
+    pyramid_angle(2 * j, k)
+}
+
+/// The facets' offset cos(π/k) and half length sin(π/k), per unit normal impulse.
+pub(crate) fn pyramid_offset_and_half(k: usize) -> (f64, f64) {
+    pyramid_angle(1, k)
 }
 
 /// The contact whose normal is row `i`, if any: contact rows are laid out (n, t1, t2), so the
@@ -163,7 +188,7 @@ pub(crate) fn residuals_at_velocities(
             FrictionModel::Pyramid { facets } => (0..facets)
                 .map(|j| {
                     let (nx, ny) = pyramid_facet(facets, j);
-                    nx * s1 + ny * s2 - (std::f64::consts::PI / facets as f64).cos() * ln.max(0.0)
+                    nx * s1 + ny * s2 - pyramid_offset_and_half(facets).0 * ln.max(0.0)
                 })
                 .fold(0.0, f64::max),
         };
@@ -176,8 +201,8 @@ pub(crate) fn residuals_at_velocities(
                 FrictionModel::Cone => norm2(m1, m2),
                 FrictionModel::Pyramid { facets } => (0..facets)
                     .map(|j| {
-                        let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
-                        -(m1 * t.cos() + m2 * t.sin())
+                        let (c, s) = pyramid_vertex(facets, j);
+                        -(m1 * c + m2 * s)
                     })
                     .fold(f64::NEG_INFINITY, f64::max),
             };
@@ -196,8 +221,8 @@ pub(crate) fn residuals_at_velocities(
             FrictionModel::Cone => norm2(m1, m2),
             FrictionModel::Pyramid { facets } => (0..facets)
                 .map(|j| {
-                    let t = 2.0 * std::f64::consts::PI * j as f64 / facets as f64;
-                    -(m1 * t.cos() + m2 * t.sin())
+                    let (c, s) = pyramid_vertex(facets, j);
+                    -(m1 * c + m2 * s)
                 })
                 .fold(f64::NEG_INFINITY, f64::max),
         };

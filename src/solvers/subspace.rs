@@ -14,6 +14,13 @@
 //!   direction θ, with `λ_t = λ_n (μ₁ cos θ, μ₂ sin θ)`: the equations are `w_n = 0` and that
 //!   the scaled slip `(μ₁ w₁, μ₂ w₂)` be parallel to the direction (maximum dissipation), the
 //!   latter nonlinear in θ and linearised (a Newton step per round);
+//! - with pyramid friction (the friction set a regular polygon in `s = (λ₁/μ₁, λ₂/μ₂)`, facet
+//!   normals `n_j` at offset `cos(π/k)`) everything is linear: a contact on facet j has two
+//!   unknowns, its normal impulse (the tangents following at `s·n_j = cos(π/k) λ_n`) and its
+//!   position τ along the facet (`s = cos(π/k) λ_n n_j + τ e_j`, `e_j` the facet's direction),
+//!   with the equations `w_n = 0` and `e_j·(μ₁ w₁, μ₂ w₂) = 0` (slip along −n_j: maximum
+//!   dissipation); a contact at a vertex `v` has one, its normal impulse with `s = λ_n v`, and the
+//!   equation `w_n = 0`. One solve per active set, no Newton rounds;
 //! - every other row keeps its impulse (zero, or the bound it sits at).
 //!
 //! The reduced system (not symmetric when a contact slides) is solved by LU with partial
@@ -25,7 +32,10 @@
 //! from it, correcting the active set where the step left it wrong.
 
 use super::pgs::project_friction;
-use super::residuals::{contact_of_normal, norm2, residuals, residuals_at_velocities};
+use super::residuals::{
+    contact_of_normal, norm2, pyramid_facet, pyramid_offset_and_half, pyramid_vertex, residuals,
+    residuals_at_velocities,
+};
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 use nalgebra::DVector;
 
@@ -53,6 +63,47 @@ enum Unit {
     /// equation is that the scaled slip `m = (μ₁ w₁, μ₂ w₂)` be parallel to (cos θ, sin θ):
     /// `g = −sin θ m₁ + cos θ m₂ = 0` (maximum dissipation when they are opposite).
     Angle(Sliding),
+    /// The normal impulse of a contact on a facet of its friction pyramid, its tangents
+    /// following on the facet: `s·n = cos(π/k) λ_n`; its equation is `w_n = 0`.
+    Facet(OnFacet),
+    /// The position τ along the same facet (always right after its `Facet`): `s += τ e`; its
+    /// equation is that the scaled slip be normal to the facet: `e·(μ₁ w₁, μ₂ w₂) = 0`.
+    Along(OnFacet),
+    /// The normal impulse of a contact at a vertex `v` of its friction pyramid: `s = λ_n v`;
+    /// its equation is `w_n = 0`.
+    Corner(AtVertex),
+}
+
+/// A contact on a facet of its friction pyramid: rows, coefficients, the facet's outward normal
+/// `n` and direction `e = (−n₂, n₁)` in the scaled plane, the facet offset cos(π/k) and half
+/// the facet's length per unit normal impulse, sin(π/k).
+#[derive(Clone, Copy, Debug)]
+struct OnFacet {
+    normal: usize,
+    t1: usize,
+    t2: usize,
+    mu: [f64; 2],
+    n: [f64; 2],
+    offset: f64,
+    half: f64,
+}
+
+impl OnFacet {
+    /// The facet's direction e = (−n₂, n₁).
+    fn e(&self) -> [f64; 2] {
+        [-self.n[1], self.n[0]]
+    }
+}
+
+/// A contact at vertex `index` of its friction pyramid, `v` in the scaled plane.
+#[derive(Clone, Copy, Debug)]
+struct AtVertex {
+    normal: usize,
+    t1: usize,
+    t2: usize,
+    mu: [f64; 2],
+    index: usize,
+    v: [f64; 2],
 }
 
 /// A sliding contact's rows, coefficients, normal impulse and direction (in λ_t/μ coordinates).
@@ -76,6 +127,14 @@ impl Unit {
             Unit::Angle(c) => {
                 [(c.t1, -c.lambda_n * c.mu[0] * c.sin), (c.t2, c.lambda_n * c.mu[1] * c.cos), (c.t2, 0.0)]
             }
+            Unit::Facet(f) => {
+                [(f.normal, 1.0), (f.t1, f.mu[0] * f.offset * f.n[0]), (f.t2, f.mu[1] * f.offset * f.n[1])]
+            }
+            Unit::Along(f) => {
+                let e = f.e();
+                [(f.t1, f.mu[0] * e[0]), (f.t2, f.mu[1] * e[1]), (f.t2, 0.0)]
+            }
+            Unit::Corner(c) => [(c.normal, 1.0), (c.t1, c.mu[0] * c.v[0]), (c.t2, c.mu[1] * c.v[1])],
         }
     }
     /// The equation Σ coefficient · w_row (+ the explicit θ-derivative on the diagonal).
@@ -84,6 +143,13 @@ impl Unit {
             Unit::Row(i) => [(i, 1.0), (i, 0.0)],
             Unit::Slide(c) => [(c.normal, 1.0), (c.normal, 0.0)],
             Unit::Angle(c) => [(c.t1, -c.sin * c.mu[0]), (c.t2, c.cos * c.mu[1])],
+            Unit::Facet(OnFacet { normal, .. }) | Unit::Corner(AtVertex { normal, .. }) => {
+                [(normal, 1.0), (normal, 0.0)]
+            }
+            Unit::Along(f) => {
+                let e = f.e();
+                [(f.t1, e[0] * f.mu[0]), (f.t2, e[1] * f.mu[1])]
+            }
         }
     }
 }
@@ -92,6 +158,14 @@ impl Unit {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct SubspaceWorkspace {
     units: Vec<Unit>,
+    /// Pyramid contacts (by normal row) that the next classification puts on the given facet,
+    /// or inside (`None`), though their impulses sit at a vertex or on a facet: see
+    /// [`release_pyramid_contacts`].
+    released: Vec<(usize, Option<usize>)>,
+    /// Contacts (normal rows) whose release the next round undid at once (a zero step): not
+    /// released again in this step, so that a degenerate contact cannot make the rounds cycle
+    /// between two active sets.
+    release_refused: Vec<usize>,
     /// Per row: whether it belongs to a contact.
     contact_row: Vec<bool>,
     /// Per row: its index in `rows`, or `usize::MAX`.
@@ -156,8 +230,8 @@ impl SubspaceWorkspace {
 /// What a subspace step did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum SubspaceOutcome {
-    /// Not attempted, or no reduced solve succeeded: pyramid friction, nothing free, too many
-    /// free impulses, or a singular reduced system.
+    /// Not attempted, or no reduced solve succeeded: nothing free, too many free impulses, a
+    /// pyramid contact with one friction coefficient zero, or a singular reduced system.
     Skipped,
     /// Not needed: λ itself is within `converged` (its exact residual), its residuals are in
     /// `workspace.residuals`.
@@ -192,7 +266,7 @@ pub(crate) fn subspace_step(
     converged: f64,
 ) -> SubspaceOutcome {
     let n = problem.rows();
-    if problem.friction != FrictionModel::Cone || n > MAX_SUBSPACE {
+    if n > MAX_SUBSPACE {
         return SubspaceOutcome::Skipped;
     }
     ws.reserve(n);
@@ -204,6 +278,8 @@ pub(crate) fn subspace_step(
         None => residuals(problem, lambda, &mut ws.w),
     };
     ws.residuals = None;
+    ws.released.clear();
+    ws.release_refused.clear();
     if current.exact() <= converged {
         let exact = current.exact();
         ws.residuals = Some(current);
@@ -244,7 +320,11 @@ pub(crate) fn subspace_step(
     ws.w_start.extend(ws.rows.iter().map(|&r| ws.w[r]));
     let mut solved = false;
     let mut reached = None;
-    for round in 0..MAX_ROUNDS {
+    let max_rounds = match problem.friction {
+        FrictionModel::Cone => MAX_ROUNDS,
+        FrictionModel::Pyramid { .. } => MAX_PYRAMID_ROUNDS,
+    };
+    for round in 0..max_rounds {
         // The units only lose rows between rounds (an impulse reaching its bound leaves them),
         // so the first round's rows cover every later one.
         if round > 0 {
@@ -264,6 +344,12 @@ pub(crate) fn subspace_step(
         }
         solved = true;
         let (alpha, blocking) = step_length(problem, &candidate, ws);
+        if alpha <= 0.0 {
+            if let Some(&(row, _)) = ws.released.first() {
+                ws.release_refused.push(row);
+            }
+        }
+        ws.released.clear();
         let mut turn: f64 = 0.0;
         for (k, (unit, x)) in ws.units.iter().zip(&ws.x).enumerate() {
             match *unit {
@@ -282,11 +368,21 @@ pub(crate) fn subspace_step(
                     candidate[c.t2] = normal * c.mu[1] * sin;
                 }
                 Unit::Angle(_) => {}
+                // Linear in their unknowns: λ moves along the column.
+                Unit::Facet(_) | Unit::Along(_) | Unit::Corner(_) => {
+                    for (row, coefficient) in unit.column() {
+                        candidate[row] += alpha * x * coefficient;
+                    }
+                }
             }
         }
         match blocking {
             // Exact on this active set (up to the direction's Newton step).
-            Blocking::None if turn <= NEWTON_TURN => break,
+            Blocking::None if turn <= NEWTON_TURN => {
+                if !release_pyramid_contacts(problem, &candidate, ws, good_enough) {
+                    break;
+                }
+            }
             Blocking::None | Blocking::Turn => {}
             // Exactly onto the bound, so that the next round classifies it there.
             Blocking::Zero(row) => {
@@ -298,7 +394,7 @@ pub(crate) fn subspace_step(
                 }
             }
             Blocking::Bound(row, value) => candidate[row] = value,
-            Blocking::Cone => {}
+            Blocking::Cone | Blocking::Vertex => {}
         }
         project(problem, &mut candidate);
         if blocking == Blocking::None {
@@ -428,6 +524,12 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
 /// Rounds of solve-and-block (and Newton steps on sliding directions) per subspace step.
 const MAX_ROUNDS: usize = 8;
 
+/// The same with pyramid friction: a round only moves one contact across a vertex or off a
+/// facet ([`release_pyramid_contacts`]), and its solve is exact (no Newton step to repeat), so
+/// more rounds are worth their reduced solves (a cold nine-contact humanoid step: 64 sweeps with
+/// 8 rounds, 16 with 16).
+const MAX_PYRAMID_ROUNDS: usize = 16;
+
 /// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
 const MAX_TURN: f64 = 0.5;
 
@@ -447,8 +549,10 @@ enum Blocking {
     Zero(usize),
     /// This row reaches this bound.
     Bound(usize, f64),
-    /// A sticking contact reaches its cone (the projection puts it exactly there).
+    /// A sticking contact reaches its cone or pyramid (the projection puts it exactly there).
     Cone,
+    /// A contact on a facet of its pyramid reaches a vertex.
+    Vertex,
     /// A sliding direction would turn more than `MAX_TURN`.
     Turn,
 }
@@ -571,6 +675,26 @@ fn step_length(
                     limit(MAX_TURN / x.abs(), Blocking::Turn);
                 }
             }
+            Unit::Facet(OnFacet { normal, .. }) | Unit::Corner(AtVertex { normal, .. }) => {
+                if x < 0.0 {
+                    limit(lambda[normal] / -x, Blocking::Zero(normal));
+                }
+            }
+            Unit::Along(f) => {
+                // |τ + α x| = half (λ_n + α x_n), with x_n the facet's normal unit (right before).
+                let x_n = ws.x[k - 1];
+                let e = f.e();
+                let scaled = [lambda[f.t1] / f.mu[0], lambda[f.t2] / f.mu[1]];
+                let tau = e[0] * scaled[0] + e[1] * scaled[1];
+                let reach = f.half * lambda[f.normal];
+                for sign in [1.0, -1.0] {
+                    // sign (τ + α x) = half (λ_n + α x_n): α (sign x − half x_n) = reach − sign τ.
+                    let rate = sign * x - f.half * x_n;
+                    if rate > 0.0 {
+                        limit((reach - sign * tau) / rate, Blocking::Vertex);
+                    }
+                }
+            }
             Unit::Row(row) => {
                 let l = lambda[row];
                 match problem.laws[row] {
@@ -592,12 +716,28 @@ fn step_length(
                             let scaled = |v: f64, mu: f64| if mu > 0.0 { v / mu } else { 0.0 };
                             let s0 = [scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2)];
                             let ds = [scaled(d[0], c.mu), scaled(d[1], c.mu2)];
-                            // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
-                            let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
-                            let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
-                            let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
-                            if let Some(root) = first_positive_root(qa, qb, qc) {
-                                limit(root, Blocking::Cone);
+                            match problem.friction {
+                                FrictionModel::Cone => {
+                                    // ‖s0 + α ds‖² = (l + α x)²: the first positive root.
+                                    let qa = ds[0] * ds[0] + ds[1] * ds[1] - x * x;
+                                    let qb = 2.0 * (s0[0] * ds[0] + s0[1] * ds[1] - l * x);
+                                    let qc = s0[0] * s0[0] + s0[1] * s0[1] - l * l;
+                                    if let Some(root) = first_positive_root(qa, qb, qc) {
+                                        limit(root, Blocking::Cone);
+                                    }
+                                }
+                                FrictionModel::Pyramid { facets } => {
+                                    // n_j·(s0 + α ds) = offset (l + α x) on the first facet met.
+                                    let offset = pyramid_offset_and_half(facets).0;
+                                    for j in 0..facets {
+                                        let (nx, ny) = pyramid_facet(facets, j);
+                                        let rate = nx * ds[0] + ny * ds[1] - offset * x;
+                                        if rate > 0.0 {
+                                            let room = offset * l - (nx * s0[0] + ny * s0[1]);
+                                            limit(room / rate, Blocking::Cone);
+                                        }
+                                    }
+                                }
                             }
                         }
                     }
@@ -657,8 +797,40 @@ fn active_units(problem: &ConstraintProblem, lambda: &mut DVector<f64>, ws: &mut
         }
         let scaled = |l: f64, mu: f64| if mu > 0.0 { l / mu } else { 0.0 };
         let (s1, s2) = (scaled(lambda[t1], c.mu), scaled(lambda[t2], c.mu2));
+        if let FrictionModel::Pyramid { facets } = problem.friction {
+            if (c.mu > 0.0) != (c.mu2 > 0.0) {
+                return false; // A pyramid squeezed to a segment: not handled.
+            }
+            let release = ws.released.iter().find(|(row, _)| *row == nr).map(|(_, facet)| *facet);
+            let units = match release {
+                Some(None) => None,
+                Some(Some(facet)) => Some(facet_units(c, facets, facet)),
+                None => pyramid_units(c, facets, normal, [s1, s2]),
+            };
+            if let Some((first, along)) = units {
+                let (v1, v2) = match first {
+                    Unit::Corner(v) => (normal * v.v[0], normal * v.v[1]),
+                    Unit::Facet(f) => {
+                        // Exactly onto the facet, keeping the position along it.
+                        let (e, along) = (f.e(), f.e()[0] * s1 + f.e()[1] * s2);
+                        let base = f.offset * normal;
+                        (base * f.n[0] + along * e[0], base * f.n[1] + along * e[1])
+                    }
+                    _ => unreachable!("pyramid_units returns a Corner or a Facet first"),
+                };
+                lambda[t1] = c.mu * v1;
+                lambda[t2] = c.mu2 * v2;
+                ws.units.push(first);
+                ws.units.extend(along);
+                continue;
+            }
+        }
         let reach = norm2(s1, s2);
-        if c.mu.max(c.mu2) > 0.0 && reach > 0.0 && reach >= (1.0 - ON_CONE) * normal {
+        if problem.friction == FrictionModel::Cone
+            && c.mu.max(c.mu2) > 0.0
+            && reach > 0.0
+            && reach >= (1.0 - ON_CONE) * normal
+        {
             let (cos, sin) = (s1 / reach, s2 / reach);
             lambda[t1] = normal * c.mu * cos;
             lambda[t2] = normal * c.mu2 * sin;
@@ -694,6 +866,125 @@ fn active_units(problem: &ConstraintProblem, lambda: &mut DVector<f64>, ws: &mut
     !ws.units.is_empty()
 }
 
+/// The units of a contact on the boundary of its friction pyramid (k facets) at scaled tangent
+/// impulse `s` and normal impulse `normal` > 0: `(Corner, None)` at a vertex,
+/// `(Facet, Some(Along))` on a facet; `None` inside (sticking) or frictionless.
+fn pyramid_units(
+    c: &crate::constraints::ContactBlock,
+    facets: usize,
+    normal: f64,
+    s: [f64; 2],
+) -> Option<(Unit, Option<Unit>)> {
+    if c.mu <= 0.0 {
+        return None;
+    }
+    let offset = pyramid_offset_and_half(facets).0;
+    let (mut best, mut reach) = (0, f64::NEG_INFINITY);
+    for j in 0..facets {
+        let (nx, ny) = pyramid_facet(facets, j);
+        let r = nx * s[0] + ny * s[1];
+        if r > reach {
+            (best, reach) = (j, r);
+        }
+    }
+    if reach < (1.0 - ON_CONE) * offset * normal {
+        return None;
+    }
+    let (Unit::Facet(facet), _) = facet_units(c, facets, best) else { unreachable!("a facet") };
+    let e = facet.e();
+    let tau = e[0] * s[0] + e[1] * s[1];
+    // Facet j runs from vertex j (τ = −half λ_n) to vertex j + 1 (τ = +half λ_n).
+    if tau.abs() >= (1.0 - ON_CONE) * facet.half * normal {
+        let vertex = if tau > 0.0 { best + 1 } else { best };
+        let index = vertex % facets;
+        let (vx, vy) = pyramid_vertex(facets, index);
+        let corner =
+            AtVertex { normal: facet.normal, t1: facet.t1, t2: facet.t2, mu: facet.mu, index, v: [vx, vy] };
+        return Some((Unit::Corner(corner), None));
+    }
+    Some((Unit::Facet(facet), Some(Unit::Along(facet))))
+}
+
+/// The units of contact `c` on facet `j` of its friction pyramid (k facets): `(Facet, Along)`.
+fn facet_units(c: &crate::constraints::ContactBlock, facets: usize, j: usize) -> (Unit, Option<Unit>) {
+    let (nx, ny) = pyramid_facet(facets, j % facets);
+    let (normal, t1, t2) = c.rows();
+    let (offset, half) = pyramid_offset_and_half(facets);
+    let facet = OnFacet { normal, t1, t2, mu: [c.mu, c.mu2], n: [nx, ny], offset, half };
+    (Unit::Facet(facet), Some(Unit::Along(facet)))
+}
+
+/// After a round that solved its active set exactly: the pyramid contacts whose slip says the
+/// active set is wrong, put into `ws.released` for the next round, and whether there were any.
+/// At a vertex, the slip `m = (μ₁ w₁, μ₂ w₂)` must not decrease `m·s` along either facet
+/// leaving it (else maximum dissipation moves the impulse along that facet); on a facet, the
+/// slip must point outward, `m = −γ n` with γ ≥ 0 (else the contact sticks). Without this a
+/// contact that passes a vertex on its way to the next facet stays at the vertex, and the
+/// reduced solve is inconsistent for every later round.
+fn release_pyramid_contacts(
+    problem: &ConstraintProblem,
+    candidate: &DVector<f64>,
+    ws: &mut SubspaceWorkspace,
+    tolerance: f64,
+) -> bool {
+    let FrictionModel::Pyramid { facets } = problem.friction else { return false };
+    let m = ws.rows.len();
+    // Row velocities at the candidate: ws.w is that of the round's start.
+    let velocity = |ws: &SubspaceWorkspace, row: usize| {
+        let a = ws.local[row];
+        let g = &ws.gram[a * m..(a + 1) * m];
+        ws.w_start[a]
+            + g.iter().zip(&ws.rows).zip(&ws.start).map(|((g, &r), l0)| g * (candidate[r] - l0)).sum::<f64>()
+    };
+    ws.released.clear();
+    // The largest violation only (by its rate of change of dissipation, m/s): releasing every
+    // violator at once moves contacts whose violation is only the others' doing.
+    let mut worst = (0.0, 0, None);
+    for k in 0..ws.units.len() {
+        let (normal, t1, t2, mu) = match ws.units[k] {
+            Unit::Facet(f) => (f.normal, f.t1, f.t2, f.mu),
+            Unit::Corner(c) => (c.normal, c.t1, c.t2, c.mu),
+            _ => continue,
+        };
+        if ws.release_refused.contains(&normal) {
+            continue;
+        }
+        let slip = [mu[0] * velocity(ws, t1), mu[1] * velocity(ws, t2)];
+        // A slip within the tolerance says nothing (a contact resting on its pyramid's edge).
+        let scale = slip[0].abs().max(slip[1].abs());
+        if scale <= tolerance {
+            continue;
+        }
+        match ws.units[k] {
+            Unit::Facet(f) => {
+                let rate = slip[0] * f.n[0] + slip[1] * f.n[1];
+                if rate > ON_CONE * scale && rate > worst.0 {
+                    worst = (rate, normal, None);
+                }
+            }
+            Unit::Corner(c) => {
+                // Vertex i lies between facet i − 1 (its end, leaving along −e) and facet i
+                // (its start, leaving along +e).
+                let (before, after) = ((c.index + facets - 1) % facets, c.index);
+                let rate = |j: usize, sign: f64| {
+                    let (nx, ny) = pyramid_facet(facets, j);
+                    sign * (-ny * slip[0] + nx * slip[1])
+                };
+                let (r_before, r_after) = (rate(before, -1.0), rate(after, 1.0));
+                let best = if r_before < r_after { (before, r_before) } else { (after, r_after) };
+                if best.1 < -ON_CONE * scale && -best.1 > worst.0 {
+                    worst = (-best.1, normal, Some(best.0));
+                }
+            }
+            _ => {}
+        }
+    }
+    if worst.0 > 0.0 {
+        ws.released.push((worst.1, worst.2));
+    }
+    !ws.released.is_empty()
+}
+
 /// Projects λ onto the feasible set: λ ≥ 0 on unilateral rows, into the box on bounded rows,
 /// into the cone of the (projected) normal impulse on contacts.
 fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
@@ -707,7 +998,7 @@ fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
     for c in &problem.contacts {
         let (nr, t1, t2) = c.rows();
         (lambda[t1], lambda[t2]) =
-            project_friction(lambda[t1], lambda[t2], lambda[nr], c.mu, c.mu2, FrictionModel::Cone);
+            project_friction(lambda[t1], lambda[t2], lambda[nr], c.mu, c.mu2, problem.friction);
     }
 }
 
