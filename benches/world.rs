@@ -47,7 +47,8 @@ fn box_stack(solvers: Vec<SolverKind>) -> World {
 fn humanoid(solvers: Vec<SolverKind>) -> World {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/peers/humanoid_fall.xml");
     let scene = gelenk::io::mjcf::load_file(path).expect("humanoid_fall.xml loads");
-    let mut options = WorldOptions { dt: scene.timestep, solvers, ..Default::default() };
+    let mut options =
+        WorldOptions { dt: scene.timestep, solvers, friction: scene.friction, ..Default::default() };
     options.sleep.enabled = false;
     options.contact = ContactParameters { mu: 0.7, ..Default::default() };
     let mut w = World::new(options);

@@ -6,6 +6,7 @@
 //! 1e-9 relative to the largest entry of the reference. Bad documents must give typed errors
 //! naming the element, never a panic.
 
+use gelenk::constraints::FrictionModel;
 use gelenk::error::MjcfError;
 use gelenk::io::mjcf::{self, MjcfScene};
 use gelenk::math::{Mat3, Vec3};
@@ -432,6 +433,17 @@ fn options_radians_and_defaults() {
     assert_eq!(s.model.lower_position_limit().as_slice(), [-1.0, f64::NEG_INFINITY]);
     assert_eq!(s.model.upper_position_limit().as_slice(), [2.0, f64::INFINITY]);
     assert_eq!(s.contact_excludes, [("a".to_string(), "b".to_string())]);
+    // MuJoCo's default friction cone is the pyramid |λ₁| + |λ₂| ≤ μ λ_n: 4 facets.
+    assert_eq!(s.friction, FrictionModel::Pyramid { facets: 4 });
+}
+
+#[test]
+fn option_cone_picks_the_friction_model() {
+    let scene = |cone: &str| mjcf::load_str(&format!(r#"<mujoco><option {cone}/><worldbody/></mujoco>"#));
+    assert_eq!(scene("cone=\"pyramidal\"").unwrap().friction, FrictionModel::Pyramid { facets: 4 });
+    assert_eq!(scene("cone=\"elliptic\"").unwrap().friction, FrictionModel::Cone);
+    let e = scene("cone=\"round\"").unwrap_err();
+    assert!(matches!(&e, MjcfError::InvalidAttribute { attribute, .. } if attribute == "cone"), "{e}");
 }
 
 #[test]

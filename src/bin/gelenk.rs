@@ -592,7 +592,13 @@ fn load_world(path: &Path) -> Result<gelenk::world::World, String> {
     use gelenk::world::{World, WorldOptions};
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
         let scene = gelenk::io::mjcf::load_file(path).map_err(|e| e.to_string())?;
-        let mut world = World::new(WorldOptions { dt: scene.timestep, ..WorldOptions::default() });
+        // MuJoCo's friction model (`<option cone>`) and its pair rule (the larger of the two
+        // geoms' sliding friction; one world coefficient, the largest, when geoms differ).
+        let mu = scene.geoms.iter().map(|g| g.friction[0]).chain(scene.statics.iter().map(|s| s.friction[0]));
+        let mut options =
+            WorldOptions { dt: scene.timestep, friction: scene.friction, ..WorldOptions::default() };
+        options.contact.mu = mu.fold(0.0, f64::max);
+        let mut world = World::new(options);
         for s in scene.statics.iter().filter(|s| s.collides) {
             world.add_static(&s.name, &s.shape, s.pose, 0).map_err(|e| e.to_string())?;
         }

@@ -3,7 +3,7 @@
 //!
 //! ## What is read
 //! - `<compiler angle eulerseq inertiafromgeom autolimits settotalmass>`;
-//! - `<option timestep gravity>` and its `<flag gravity contact>`;
+//! - `<option timestep gravity cone>` and its `<flag gravity contact>`;
 //! - `<default>` classes, nested, with their `<joint>` and `<geom>` defaults; `class` on joints
 //!   and geoms, `childclass` on bodies and frames;
 //! - `<worldbody>` with nested `<body name pos quat|axisangle|euler|xyaxes|zaxis>`, `<frame>`,
@@ -59,6 +59,7 @@
 //! assert_eq!(scene.q0[2], 1.0); // MuJoCo's qpos0: the body's pose
 //! ```
 
+use crate::constraints::FrictionModel;
 use crate::error::{DynamicsError, MjcfError, ModelError};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::model::{
@@ -123,6 +124,9 @@ pub struct MjcfScene {
     pub gravity: Vec3,
     /// False when `<flag contact="disable">`.
     pub contact_enabled: bool,
+    /// `<option cone>`: MuJoCo's default `pyramidal` is gelenk's 4-facet pyramid (the same set:
+    /// `|λ₁| + |λ₂| ≤ μ λ_n`), `elliptic` the Coulomb cone.
+    pub friction: FrictionModel,
     /// Damping of every joint (N·m·s/rad or N·s/m), in model joint order.
     pub joint_damping: Vec<(String, f64)>,
     /// Armature of every joint (kg·m² or kg), in model joint order. gelenk does not model armature
@@ -442,6 +446,7 @@ fn load_on_this_thread(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {
     let mut timestep = 0.002;
     let mut gravity = Vec3::new(0.0, 0.0, -9.81);
     let (mut gravity_on, mut contact_enabled) = (true, true);
+    let mut friction = FrictionModel::Pyramid { facets: 4 };
     let mut excludes = Vec::new();
     for &s in &sections {
         match s.tag_name().name() {
@@ -456,6 +461,13 @@ fn load_on_this_thread(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {
                 if let Some(g) = loader.vector::<3>(s, Kind::None, "gravity")? {
                     gravity = Vec3::from(g);
                 }
+                friction = match s.attribute("cone") {
+                    None | Some("pyramidal") => FrictionModel::Pyramid { facets: 4 },
+                    Some("elliptic") => FrictionModel::Cone,
+                    Some(t) => {
+                        return Err(loader.bad_attr(s, "cone", t, "expected `pyramidal` or `elliptic`"))
+                    }
+                };
                 for flag in s.children().filter(Node::is_element) {
                     if flag.tag_name().name() == "flag" {
                         gravity_on &= loader.enabled(flag, "gravity")?;
@@ -533,7 +545,7 @@ fn load_on_this_thread(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {
             stack.extend(bodies.into_iter().rev().map(|(node, pose, class)| (node, me.clone(), pose, class)));
         }
     }
-    loader.finish(timestep, gravity, contact_enabled, excludes)
+    loader.finish(timestep, gravity, contact_enabled, friction, excludes)
 }
 
 impl<'a, 'i> Loader<'a, 'i> {
@@ -1333,6 +1345,7 @@ impl<'a, 'i> Loader<'a, 'i> {
         timestep: f64,
         gravity: Vec3,
         contact_enabled: bool,
+        friction: FrictionModel,
         contact_excludes: Vec<(String, String)>,
     ) -> Result<MjcfScene, MjcfError> {
         if self.compiler.settotalmass > 0.0 {
@@ -1407,6 +1420,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             timestep,
             gravity,
             contact_enabled,
+            friction,
             joint_damping: self.joint_damping,
             joint_armature: self.joint_armature,
             geoms: self.geoms,
