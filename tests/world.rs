@@ -178,6 +178,61 @@ fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
     assert!((distance - expected).abs() < 0.02 * expected, "distance {distance} vs {expected}");
 }
 
+/// MuJoCo's pyramidal friction (`FrictionModel::Pyramid { facets: 4 }`: `|λ₁| + |λ₂| ≤ μ λ_n`)
+/// with the default chain (PGS with its linear subspace steps, certified at 1e-6 m/s): a box
+/// sliding along a tangent axis (a vertex of the pyramid) stops after v₀²/(2μg) like with the
+/// cone; sliding along the diagonal (a facet: the friction along the motion is μ/√2 per unit
+/// normal force) it goes √2 times as far and stays on the diagonal.
+#[test]
+fn pyramid_friction_stops_a_box_after_the_distance_its_facets_give() {
+    use gelenk::constraints::FrictionModel;
+    let slide = |direction: [f64; 2]| {
+        let mut options =
+            WorldOptions { friction: FrictionModel::Pyramid { facets: 4 }, ..Default::default() };
+        options.dt = 1e-3;
+        options.contact = ContactParameters { mu: 0.5, ..Default::default() };
+        options.sleep.enabled = false;
+        let mut w = world_with_ground(options, Vec3::z());
+        let side = 0.2;
+        let b = w
+            .add_multibody(
+                "box",
+                lone_body(
+                    "box",
+                    Shape::Box { size: Vec3::repeat(side) },
+                    RigidInertia::solid_box(1.0, Vec3::repeat(side)),
+                ),
+                &MeshOptions::default(),
+            )
+            .unwrap();
+        w.multibody_mut(b).state.q[2] = side / 2.0;
+        for _ in 0..50 {
+            w.step().unwrap();
+        }
+        let (x0, y0) = (w.multibody(b).state.q[0], w.multibody(b).state.q[1]);
+        let v0 = 2.0;
+        w.multibody_mut(b).state.v[0] = v0 * direction[0];
+        w.multibody_mut(b).state.v[1] = v0 * direction[1];
+        let mut fallbacks = 0;
+        for _ in 0..3000 {
+            fallbacks += w.step().unwrap().fallbacks.len();
+        }
+        assert_eq!(fallbacks, 0, "every step certified by PGS");
+        let q = &w.multibody(b).state.q;
+        (q[0] - x0, q[1] - y0)
+    };
+    let axis = 4.0 / (2.0 * 0.5 * 9.81);
+    let (dx, dy) = slide([1.0, 0.0]);
+    assert!((dx - axis).abs() < 0.02 * axis && dy.abs() < 1e-6, "along x: ({dx}, {dy}) vs {axis}");
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let (dx, dy) = slide([h, h]);
+    let (along, across) = ((dx + dy) * h, (dx - dy) * h);
+    let expected = std::f64::consts::SQRT_2 * axis;
+    println!("diagonal: {along:.5} m along (expected {expected:.5}), {across:.2e} m across");
+    assert!((along - expected).abs() < 0.02 * expected, "along the diagonal: {along} vs {expected}");
+    assert!(across.abs() < 1e-3 * expected, "off the diagonal by {across}");
+}
+
 #[test]
 fn box_on_incline_sticks_iff_mu_at_least_tan_theta() {
     let theta: f64 = 20f64.to_radians();
