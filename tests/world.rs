@@ -144,9 +144,9 @@ fn speculative_contacts_get_rows_only_when_the_step_can_close_them() {
     assert!(height.abs() < 1e-9, "the fast ball stops on the ground: height {height}");
 }
 
-#[test]
-fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
-    let mut options = exact_options();
+/// A 0.2 m, 1 kg box resting on the ground with μ = 0.5 at dt = 1 ms, pushed at 2 m/s along
+/// `direction` (unit, horizontal): its displacement (x, y) after 3 s and the fallbacks on the way.
+fn slide_box(mut options: WorldOptions, direction: [f64; 2]) -> ((f64, f64), usize) {
     options.dt = 1e-3;
     options.contact = ContactParameters { mu: 0.5, ..Default::default() };
     options.sleep.enabled = false;
@@ -167,14 +167,22 @@ fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
     for _ in 0..50 {
         w.step().unwrap();
     }
+    let (x0, y0) = (w.multibody(b).state.q[0], w.multibody(b).state.q[1]);
     let v0 = 2.0;
-    let x0 = w.multibody(b).state.q[0];
-    w.multibody_mut(b).state.v[0] = v0;
+    w.multibody_mut(b).state.v[0] = v0 * direction[0];
+    w.multibody_mut(b).state.v[1] = v0 * direction[1];
+    let mut fallbacks = 0;
     for _ in 0..3000 {
-        w.step().unwrap();
+        fallbacks += w.step().unwrap().fallbacks.len();
     }
-    let distance = w.multibody(b).state.q[0] - x0;
-    let expected = v0 * v0 / (2.0 * 0.5 * 9.81);
+    let q = &w.multibody(b).state.q;
+    ((q[0] - x0, q[1] - y0), fallbacks)
+}
+
+#[test]
+fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
+    let ((distance, _), _) = slide_box(exact_options(), [1.0, 0.0]);
+    let expected = 2.0 * 2.0 / (2.0 * 0.5 * 9.81);
     assert!((distance - expected).abs() < 0.02 * expected, "distance {distance} vs {expected}");
 }
 
@@ -187,39 +195,10 @@ fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
 fn pyramid_friction_stops_a_box_after_the_distance_its_facets_give() {
     use gelenk::constraints::FrictionModel;
     let slide = |direction: [f64; 2]| {
-        let mut options =
-            WorldOptions { friction: FrictionModel::Pyramid { facets: 4 }, ..Default::default() };
-        options.dt = 1e-3;
-        options.contact = ContactParameters { mu: 0.5, ..Default::default() };
-        options.sleep.enabled = false;
-        let mut w = world_with_ground(options, Vec3::z());
-        let side = 0.2;
-        let b = w
-            .add_multibody(
-                "box",
-                lone_body(
-                    "box",
-                    Shape::Box { size: Vec3::repeat(side) },
-                    RigidInertia::solid_box(1.0, Vec3::repeat(side)),
-                ),
-                &MeshOptions::default(),
-            )
-            .unwrap();
-        w.multibody_mut(b).state.q[2] = side / 2.0;
-        for _ in 0..50 {
-            w.step().unwrap();
-        }
-        let (x0, y0) = (w.multibody(b).state.q[0], w.multibody(b).state.q[1]);
-        let v0 = 2.0;
-        w.multibody_mut(b).state.v[0] = v0 * direction[0];
-        w.multibody_mut(b).state.v[1] = v0 * direction[1];
-        let mut fallbacks = 0;
-        for _ in 0..3000 {
-            fallbacks += w.step().unwrap().fallbacks.len();
-        }
+        let options = WorldOptions { friction: FrictionModel::Pyramid { facets: 4 }, ..Default::default() };
+        let (displacement, fallbacks) = slide_box(options, direction);
         assert_eq!(fallbacks, 0, "every step certified by PGS");
-        let q = &w.multibody(b).state.q;
-        (q[0] - x0, q[1] - y0)
+        displacement
     };
     let axis = 4.0 / (2.0 * 0.5 * 9.81);
     let (dx, dy) = slide([1.0, 0.0]);

@@ -430,6 +430,17 @@ impl ConstraintSolver for PgsSolver {
     }
 }
 
+/// The unconstrained minimiser `o − ω G⁻¹ w` of a contact's two friction rows (G = [[g11, g12],
+/// [g12, g22]]), or `None` if G is singular.
+fn unconstrained_block_step(o: [f64; 2], w: [f64; 2], g: [f64; 3], omega: f64) -> Option<[f64; 2]> {
+    let [g11, g12, g22] = g;
+    let det = g11 * g22 - g12 * g12;
+    if det.is_nan() || det <= 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE) {
+        return None;
+    }
+    Some([o[0] - omega * (g22 * w[0] - g12 * w[1]) / det, o[1] - omega * (g11 * w[1] - g12 * w[0]) / det])
+}
+
 /// One block Gauss–Seidel step on a contact's two friction rows with the cone as the friction
 /// set: with `G` = [[g11, g12], [g12, g22]] the 2×2 block of A + R, `w` the rows' current
 /// velocities and `o` their impulses, the local problem is `min ½ λᵀGλ + (w − G o)ᵀλ` over the
@@ -454,12 +465,7 @@ fn friction_block_step(
     gamma_start: &mut f64,
 ) -> Option<(f64, f64)> {
     let [g11, g12, g22] = g;
-    let det = g11 * g22 - g12 * g12;
-    if det.is_nan() || det <= 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE) {
-        return None;
-    }
-    let free =
-        [o[0] - omega * (g22 * w[0] - g12 * w[1]) / det, o[1] - omega * (g11 * w[1] - g12 * w[0]) / det];
+    let free = unconstrained_block_step(o, w, g, omega)?;
     let scaled = |l: [f64; 2]| {
         let s1 = if mu[0] > 0.0 { l[0] / mu[0] } else { 0.0 };
         let s2 = if mu[1] > 0.0 { l[1] / mu[1] } else { 0.0 };
@@ -524,15 +530,13 @@ fn pyramid_block_step(
     facets: usize,
 ) -> Option<(f64, f64)> {
     let [g11, g12, g22] = g;
-    let det = g11 * g22 - g12 * g12;
-    if det.is_nan() || det <= 1e-14 * (g11 * g22).max(f64::MIN_POSITIVE) || mu[0] <= 0.0 || mu[1] <= 0.0 {
+    if mu[0] <= 0.0 || mu[1] <= 0.0 {
         return None;
     }
+    let free = unconstrained_block_step(o, w, g, omega)?;
     if bound <= 0.0 {
         return Some((0.0, 0.0));
     }
-    let free =
-        [o[0] - omega * (g22 * w[0] - g12 * w[1]) / det, o[1] - omega * (g11 * w[1] - g12 * w[0]) / det];
     let s_free = [free[0] / mu[0], free[1] / mu[1]];
     let (offset, half) = pyramid_offset_and_half(facets);
     let half = half * bound;
