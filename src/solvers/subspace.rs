@@ -158,10 +158,10 @@ impl Unit {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct SubspaceWorkspace {
     units: Vec<Unit>,
-    /// Pyramid contacts (by normal row) that the next classification puts on the given facet,
-    /// or inside (`None`), though their impulses sit at a vertex or on a facet: see
+    /// The pyramid contact (by normal row) that the next classification puts on the given
+    /// facet, or inside (`None`), though its impulses sit at a vertex or on a facet: see
     /// [`release_pyramid_contacts`].
-    released: Vec<(usize, Option<usize>)>,
+    released: Option<(usize, Option<usize>)>,
     /// Contacts (normal rows) whose release the next round undid at once (a zero step): not
     /// released again in this step, so that a degenerate contact cannot make the rounds cycle
     /// between two active sets.
@@ -278,7 +278,7 @@ pub(crate) fn subspace_step(
         None => residuals(problem, lambda, &mut ws.w),
     };
     ws.residuals = None;
-    ws.released.clear();
+    ws.released = None;
     ws.release_refused.clear();
     if current.exact() <= converged {
         let exact = current.exact();
@@ -345,11 +345,11 @@ pub(crate) fn subspace_step(
         solved = true;
         let (alpha, blocking) = step_length(problem, &candidate, ws);
         if alpha <= 0.0 {
-            if let Some(&(row, _)) = ws.released.first() {
+            if let Some((row, _)) = ws.released {
                 ws.release_refused.push(row);
             }
         }
-        ws.released.clear();
+        ws.released = None;
         let mut turn: f64 = 0.0;
         for (k, (unit, x)) in ws.units.iter().zip(&ws.x).enumerate() {
             match *unit {
@@ -801,10 +801,13 @@ fn active_units(problem: &ConstraintProblem, lambda: &mut DVector<f64>, ws: &mut
             if (c.mu > 0.0) != (c.mu2 > 0.0) {
                 return false; // A pyramid squeezed to a segment: not handled.
             }
-            let release = ws.released.iter().find(|(row, _)| *row == nr).map(|(_, facet)| *facet);
+            let release = ws.released.filter(|(row, _)| *row == nr).map(|(_, facet)| facet);
             let units = match release {
                 Some(None) => None,
-                Some(Some(facet)) => Some(facet_units(c, facets, facet)),
+                Some(Some(j)) => {
+                    let facet = on_facet(c, facets, j);
+                    Some((Unit::Facet(facet), Some(Unit::Along(facet))))
+                }
                 None => pyramid_units(c, facets, normal, [s1, s2]),
             };
             if let Some((first, along)) = units {
@@ -890,7 +893,7 @@ fn pyramid_units(
     if reach < (1.0 - ON_CONE) * offset * normal {
         return None;
     }
-    let (Unit::Facet(facet), _) = facet_units(c, facets, best) else { unreachable!("a facet") };
+    let facet = on_facet(c, facets, best);
     let e = facet.e();
     let tau = e[0] * s[0] + e[1] * s[1];
     // Facet j runs from vertex j (τ = −half λ_n) to vertex j + 1 (τ = +half λ_n).
@@ -905,20 +908,20 @@ fn pyramid_units(
     Some((Unit::Facet(facet), Some(Unit::Along(facet))))
 }
 
-/// The units of contact `c` on facet `j` of its friction pyramid (k facets): `(Facet, Along)`.
-fn facet_units(c: &crate::constraints::ContactBlock, facets: usize, j: usize) -> (Unit, Option<Unit>) {
+/// Contact `c` on facet `j` of its friction pyramid (k facets).
+fn on_facet(c: &crate::constraints::ContactBlock, facets: usize, j: usize) -> OnFacet {
     let (nx, ny) = pyramid_facet(facets, j % facets);
     let (normal, t1, t2) = c.rows();
     let (offset, half) = pyramid_offset_and_half(facets);
-    let facet = OnFacet { normal, t1, t2, mu: [c.mu, c.mu2], n: [nx, ny], offset, half };
-    (Unit::Facet(facet), Some(Unit::Along(facet)))
+    OnFacet { normal, t1, t2, mu: [c.mu, c.mu2], n: [nx, ny], offset, half }
 }
 
-/// After a round that solved its active set exactly: the pyramid contacts whose slip says the
-/// active set is wrong, put into `ws.released` for the next round, and whether there were any.
+/// After a round that solved its active set exactly: the pyramid contact whose slip says the
+/// active set is most wrong, put into `ws.released` for the next round, and whether there is one.
 /// At a vertex, the slip `m = (μ₁ w₁, μ₂ w₂)` must not decrease `m·s` along either facet
 /// leaving it (else maximum dissipation moves the impulse along that facet); on a facet, the
-/// slip must point outward, `m = −γ n` with γ ≥ 0 (else the contact sticks). Without this a
+/// slip must oppose the facet's outward normal, `m = −γ n` with γ ≥ 0 (else the contact
+/// sticks). Without this a
 /// contact that passes a vertex on its way to the next facet stays at the vertex, and the
 /// reduced solve is inconsistent for every later round.
 fn release_pyramid_contacts(
@@ -936,7 +939,6 @@ fn release_pyramid_contacts(
         ws.w_start[a]
             + g.iter().zip(&ws.rows).zip(&ws.start).map(|((g, &r), l0)| g * (candidate[r] - l0)).sum::<f64>()
     };
-    ws.released.clear();
     // The largest violation only (by its rate of change of dissipation, m/s): releasing every
     // violator at once moves contacts whose violation is only the others' doing.
     let mut worst = (0.0, 0, None);
@@ -979,10 +981,8 @@ fn release_pyramid_contacts(
             _ => {}
         }
     }
-    if worst.0 > 0.0 {
-        ws.released.push((worst.1, worst.2));
-    }
-    !ws.released.is_empty()
+    ws.released = (worst.0 > 0.0).then_some((worst.1, worst.2));
+    ws.released.is_some()
 }
 
 /// Projects λ onto the feasible set: λ ≥ 0 on unilateral rows, into the box on bounded rows,
