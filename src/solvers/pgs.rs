@@ -196,7 +196,9 @@ impl ConstraintSolver for PgsSolver {
         // MuJoCo's warm-start guard: λ₀ only if it beats λ = 0 on the objective
         // f(λ) = ½ λᵀ(A + R)λ + bᵀλ (f(0) = 0). After an impact the last step's impulses can be
         // a hundred times the answer, and the sweeps then take their time to shed them (a
-        // ragdoll's separating hand: λ_n 25 → 0 at 3 % per sweep).
+        // ragdoll's separating hand: λ_n 25 → 0 at 3 % per sweep). Only where a subspace step
+        // can make up for a cold start: without one (over 128 rows) the sweeps live on their
+        // warm start (with the guard there too the 20-ragdoll pile never slept within 10 s).
         if self.subspace && n <= MAX_SUBSPACE && lambda.iter().any(|x| *x != 0.0) {
             let quadratic: f64 = if sparse {
                 self.workspace.dv.iter().map(|x| x * x).sum()
