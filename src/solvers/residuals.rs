@@ -81,7 +81,7 @@ fn pyramid_angle(m: usize, k: usize) -> (f64, f64) {
 }
 
 /// Outward normal of facet j of the k-facet friction pyramid in the (λ₁/μ, λ₂/μ₂) plane, at
-/// angle π(2j + 1)/k; the facet lies at offset [`pyramid_offset`] times the normal impulse.
+/// angle π(2j + 1)/k; the facet lies at offset [`pyramid_offset_and_half`] times the normal impulse.
 pub(crate) fn pyramid_facet(k: usize, j: usize) -> (f64, f64) {
     pyramid_angle(2 * j + 1, k)
 }
@@ -194,29 +194,9 @@ pub(crate) fn residuals_at_velocities(
         };
         let violation = (violation * c.mu.max(c.mu2)).max(zero_mu_excess) * scale;
         r.friction_feasibility = r.friction_feasibility.max(violation);
-        // Dissipation gap: max over the friction set of −w_t·f, minus −w_t·λ_t, per unit bound.
-        let (m1, m2) = (c.mu * w1, c.mu2 * w2);
-        let best = ln.max(0.0)
-            * match problem.friction {
-                FrictionModel::Cone => norm2(m1, m2),
-                FrictionModel::Pyramid { facets } => (0..facets)
-                    .map(|j| {
-                        let (c, s) = pyramid_vertex(facets, j);
-                        -(m1 * c + m2 * s)
-                    })
-                    .fold(f64::NEG_INFINITY, f64::max),
-            };
-        // Per unit of the friction bound, floored at the impulse that changes a velocity by
-        // 1 µm/s, so that the direction of a negligible impulse does not count.
-        let bound = c.mu.max(c.mu2) * ln.max(0.0);
-        if bound > 0.0 {
-            let floor = 1e-6 / scale;
-            r.dissipation = r.dissipation.max(((best + w1 * l1 + w2 * l2) / bound.max(floor)).abs());
-        }
-        // Convex relaxation (Anitescu): w ∈ K* (w_n ≥ ‖(μ w₁, μ₂ w₂)‖) and, per block,
-        // λ_n (w_n − ‖(μ w₁, μ₂ w₂)‖) = 0 (friction opposing slip is the dissipation term).
-        // The dual of the friction set: w_n ≥ max over the set's unit section of −f·w_t (the
+        // The support of the friction set's unit section in −w_t: max over it of −f·w_t (the
         // ellipse's ‖(μ w₁, μ₂ w₂)‖, or the pyramid's largest vertex term).
+        let (m1, m2) = (c.mu * w1, c.mu2 * w2);
         let support = match problem.friction {
             FrictionModel::Cone => norm2(m1, m2),
             FrictionModel::Pyramid { facets } => (0..facets)
@@ -226,6 +206,18 @@ pub(crate) fn residuals_at_velocities(
                 })
                 .fold(f64::NEG_INFINITY, f64::max),
         };
+        // Dissipation gap: max over the friction set of −w_t·f, minus −w_t·λ_t, per unit bound.
+        let best = ln.max(0.0) * support;
+        // Per unit of the friction bound, floored at the impulse that changes a velocity by
+        // 1 µm/s, so that the direction of a negligible impulse does not count.
+        let bound = c.mu.max(c.mu2) * ln.max(0.0);
+        if bound > 0.0 {
+            let floor = 1e-6 / scale;
+            r.dissipation = r.dissipation.max(((best + w1 * l1 + w2 * l2) / bound.max(floor)).abs());
+        }
+        // Convex relaxation (Anitescu): w ∈ K* (w_n ≥ ‖(μ w₁, μ₂ w₂)‖) and, per block,
+        // λ_n (w_n − ‖(μ w₁, μ₂ w₂)‖) = 0 (friction opposing slip is the dissipation term).
+        // The dual of the friction set: w_n ≥ the support above.
         let surplus = wn - support;
         r.conic_kkt = r.conic_kkt.max((-surplus).max(0.0)).max((scale * ln).min(surplus).abs());
         if frictionless {
