@@ -294,6 +294,35 @@ fn pendulum_stops_at_its_limit_and_a_motor_reaches_its_target() {
     assert!((w.multibody(p).state.v[0] - 1.0).abs() < 1e-9, "v = {}", w.multibody(p).state.v[0]);
 }
 
+/// Joint limits are speculative like contacts: the pendulum held by gravity toward its stop
+/// 15 mrad away (inside the 20 mrad limit margin, beyond the 10 mrad `speculative_within`)
+/// gets no limit row at rest, where the step cannot close the gap, but gets one when it swings
+/// at 5 rad/s (10 mrad per step, doubled), and at rest when every stop within the margin is
+/// asked for.
+#[test]
+fn limit_rows_are_speculative_like_contacts() {
+    use gelenk::constraints::Speculation;
+    let rows_at = |q: f64, v: f64, speculation: Speculation| {
+        let mut options = exact_options();
+        options.dt = 2e-3;
+        options.speculation = speculation;
+        options.sleep.enabled = false;
+        let mut w = World::new(options);
+        let p = w.add_multibody("pendulum", pendulum(0.3), &MeshOptions::default()).unwrap();
+        w.multibody_mut(p).state.q[0] = q;
+        w.multibody_mut(p).state.v[0] = v;
+        w.step().unwrap().rows
+    };
+    let default = Speculation::default();
+    assert_eq!(gelenk::constraints::JointLimitParameters::default().speculative_within, 0.01);
+    assert_eq!(rows_at(0.315, 0.0, default), 0, "at rest, 15 mrad from the stop");
+    assert_eq!(rows_at(0.315, -5.0, default), 1, "at 5 rad/s toward the stop");
+    assert_eq!(rows_at(0.315, 5.0, default), 1, "at 5 rad/s away (the speed, not its sign, counts)");
+    assert_eq!(rows_at(0.315, 0.0, Speculation::ALL), 1, "every stop within the margin");
+    assert_eq!(rows_at(0.305, 0.0, default), 1, "within speculative_within");
+    assert_eq!(rows_at(0.35, -5.0, default), 0, "outside the margin");
+}
+
 #[test]
 fn two_runs_are_bit_identical_and_substeps_are_capped() {
     let run = || {

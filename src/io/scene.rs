@@ -87,7 +87,7 @@
 //! | | `sleep` | let resting bodies sleep (true) |
 //! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
 //! | `[contact]` | `mu`, `mu2`, `restitution`, `bounce_velocity`, `erp`, `cfm`, `surface_layer`, `max_correcting_velocity` | parameters of material 0 ([`ContactParameters`]) |
-//! | `[limits]` | `erp`, `cfm`, `restitution`, `bounce_velocity`, `margin` | joint-limit parameters ([`JointLimitParameters`]) |
+//! | `[limits]` | `erp`, `cfm`, `restitution`, `bounce_velocity`, `margin`, `speculative_within` | joint-limit parameters ([`JointLimitParameters`]; a stop within `margin` but further than `speculative_within` gets a row only if the step can close the gap) |
 //! | `[[material]]` | `index` (≥ 1, required), `name`, and the keys of `[contact]` | a material; unset parameters are `[contact]`'s |
 //! | `[[pair]]` | `materials = [a, b]` (indices or names) and the keys of `[contact]` | parameters when materials a and b touch, instead of the combination rule |
 //! | `[[ground]]` | `kind` | `"plane"` (default), `"slope"` or `"heightfield"` |
@@ -1108,6 +1108,7 @@ struct LimitsSection {
     restitution: Option<Fraction>,
     bounce_velocity: Option<NonNegative>,
     margin: Option<NonNegative>,
+    speculative_within: Option<NonNegative>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
@@ -1390,6 +1391,7 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
         restitution: l.restitution.map_or(lim.restitution, |x| x.0),
         bounce_velocity: l.bounce_velocity.map_or(lim.bounce_velocity, |x| x.0),
         margin: l.margin.map_or(lim.margin, |x| x.0),
+        speculative_within: l.speculative_within.map_or(lim.speculative_within, |x| x.0),
     };
     if let Some(dt) = overrides.dt {
         options.dt = dt;

@@ -25,9 +25,9 @@ pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
-    add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows, add_loop_closure_rows_between,
-    add_motor_row, ConstraintProblem, ContactParameters, FrictionModel, LoopClosure, ProblemBuilder,
-    RowOrigin, Speculation, TreeFactor,
+    add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows_speculative,
+    add_loop_closure_rows_between, add_motor_row, ConstraintProblem, ContactParameters, FrictionModel,
+    LoopClosure, ProblemBuilder, RowOrigin, Speculation, TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -851,14 +851,15 @@ impl World {
         );
         self.contacts = contacts;
         for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {
-            add_joint_limit_rows(
+            add_joint_limit_rows_speculative(
                 &mut builder,
                 &b.model,
                 &b.state.q,
-                &b.state.v,
+                (&b.state.v, &b.v_free),
                 b.col,
                 h,
                 &self.options.limits,
+                Speculation { always_within: self.options.limits.speculative_within, ..speculation },
             );
             for (k, motor) in b.motors.iter().enumerate() {
                 if let Some(m) = motor {
