@@ -44,10 +44,14 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
         }
         // For each ancestor i of k, nearest first (at depth p, so that its row has p + 1
         // entries): H_ij −= (H_ki / D_k) H_kj over the ancestors-or-self j of i, then
-        // L_ki = H_ki / D_k. Row k's entries above i are still undivided when i is done.
+        // L_ki = H_ki / D_k. Row k's entries above i are still undivided when i is done, and
+        // entry p is last read by its own update. One division per dof, not one per entry (a
+        // ragdoll's 39 rows hold 381 entries; a division's throughput is that of several
+        // multiply-adds).
+        let inverse_pivot = 1.0 / pivot;
         let (before, row_k) = packed.split_at_mut(start);
         for p in (0..depth).rev() {
-            let a = row_k[p] / pivot;
+            let a = row_k[p] * inverse_pivot;
             if a != 0.0 {
                 let i = paths[path_start[k] + p];
                 let row_i = &mut before[row_start(i)..row_start(i) + p + 1];
@@ -55,9 +59,7 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
                     *x -= a * y;
                 }
             }
-        }
-        for x in &mut row_k[..depth] {
-            *x /= pivot;
+            row_k[p] = a;
         }
     }
     // L's row k into the documented layout: below the diagonal and mirrored above it.

@@ -1019,15 +1019,16 @@ fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
         }
         pivots.push(best);
         if best != col {
-            for j in 0..s {
-                a.swap(col * s + j, best * s + j);
-            }
+            let (upper, lower) = a.split_at_mut(best * s);
+            upper[col * s..(col + 1) * s].swap_with_slice(&mut lower[..s]);
         }
-        let pivot = a[col * s + col];
+        // One division per column, not one per entry below the pivot: a division's throughput
+        // is that of several vector multiply-adds.
+        let inverse_pivot = 1.0 / a[col * s + col];
         let (top, bottom) = a.split_at_mut((col + 1) * s);
         let pivot_row = &top[col * s + col + 1..(col + 1) * s];
         for row in bottom.chunks_exact_mut(s) {
-            let factor = row[col] / pivot;
+            let factor = row[col] * inverse_pivot;
             row[col] = factor;
             if factor != 0.0 {
                 for (x, p) in row[col + 1..].iter_mut().zip(pivot_row) {
