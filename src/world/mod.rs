@@ -829,9 +829,14 @@ impl World {
 
     fn add_rows(&mut self, h: f64) {
         let mut builder = std::mem::replace(&mut self.builder, ProblemBuilder::new(0, self.options.friction));
+        if self.options.speculation.speed_factor.is_finite() {
+            for b in &mut self.bodies {
+                b.update_world_velocities();
+            }
+        }
         let bodies = &self.bodies;
         let contacts = std::mem::take(&mut self.contacts);
-        let (v, v_free, speculation) = (&self.v_all, &self.v_free_all, self.options.speculation);
+        let (v, speculation) = (&self.v_all, self.options.speculation);
         add_contact_rows_with(
             &mut builder,
             |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
@@ -840,13 +845,21 @@ impl World {
             v,
             h,
             |c| self.parameters_of(c),
-            |c, rates| {
+            |c| {
                 if speculation.keeps(c.distance, 0.0, h) {
                     return true;
                 }
-                let relative =
-                    |v: &DVector<f64>| rates.iter().map(|(col, r)| r * v[*col]).sum::<Vec3>().norm();
-                speculation.keeps(c.distance, relative(v).max(relative(v_free)), h)
+                // The closing speed of the contact's two points under v and under v_free.
+                let point_velocities = |side: Attachment, p: &Vec3| match side {
+                    Attachment::Body { multibody, body } => {
+                        let (at_v, at_free) = &bodies[multibody].world_velocities[body];
+                        (at_v.linear + at_v.angular.cross(p), at_free.linear + at_free.angular.cross(p))
+                    }
+                    Attachment::World => (Vec3::zeros(), Vec3::zeros()),
+                };
+                let (a, a_free) = point_velocities(c.body_a, &c.point_a);
+                let (b, b_free) = point_velocities(c.body_b, &c.point_b);
+                speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h)
             },
         );
         self.contacts = contacts;

@@ -8,7 +8,7 @@ use crate::algorithms::{
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::integrators::implicit::{implicit_velocity_from_dynamics, ImplicitTerms};
-use crate::math::Vec3;
+use crate::math::{Motion, Vec3};
 use crate::model::{Joint, Model};
 use crate::state::State;
 use nalgebra::DVector;
@@ -116,6 +116,9 @@ pub struct Multibody {
     /// the factorization. Other writers of the factor (smooth steps) write the same M, up to
     /// round-off.
     constant_mass_factored: bool,
+    /// Per body, its spatial velocity in world axes about the world origin under `state.v` and
+    /// under `v_free` ([`Multibody::update_world_velocities`]).
+    pub(crate) world_velocities: Vec<(Motion, Motion)>,
 }
 
 impl Multibody {
@@ -148,7 +151,29 @@ impl Multibody {
             rhs: DVector::zeros(nv),
             factored: false,
             constant_mass_factored: false,
+            world_velocities: vec![(Motion::zero(), Motion::zero()); nb],
             model,
+        }
+    }
+
+    /// Fills `world_velocities`: the spatial velocity of every body in world axes about the
+    /// world origin (a point p of the body moves at `linear + angular × p`) under the state's
+    /// velocity and under the free velocity, `V_b = V_parent + Σ_k J_k v_k` over the columns of
+    /// b's joint (`data.j_world` must be current). O(nv): the world's speculative-contact test
+    /// reads a contact's closing speed from it instead of forming the contact's Jacobian.
+    pub(crate) fn update_world_velocities(&mut self) {
+        let (model, data) = (&self.model, &self.data);
+        for i in 1..model.nbodies() {
+            let (mut at_v, mut at_free) = self.world_velocities[model.parent(i)];
+            for k in model.idx_v(i)..model.idx_v(i) + model.joint(i).nv() {
+                let column = &data.j_world[k];
+                let (v, v_free) = (self.state.v[k], self.v_free[k]);
+                at_v.linear += column.linear * v;
+                at_v.angular += column.angular * v;
+                at_free.linear += column.linear * v_free;
+                at_free.angular += column.angular * v_free;
+            }
+            self.world_velocities[i] = (at_v, at_free);
         }
     }
 
