@@ -15,20 +15,33 @@ import time
 
 import mujoco
 
-for path in sys.argv[1:]:
-    model = mujoco.MjModel.from_xml_path(path)
+
+def episode_means(model, episodes=5, steps=2500):
+    """Mean µs per step of each of `episodes` runs of `steps` `mj_step`s from the initial state
+    (keyframe 0 if the model has one)."""
     means = []
-    for _ in range(5):
+    for _ in range(episodes):
         data = mujoco.MjData(model)
         if model.nkey > 0:
             # A scene with an initial velocity (benches/ragdoll_mjcf.py) keeps it in key 0.
             mujoco.mj_resetDataKeyframe(model, data, 0)
         mujoco.mj_forward(model, data)
         start = time.perf_counter()
-        mujoco.mj_step(model, data, nstep=2500)
-        means.append((time.perf_counter() - start) / 2500 * 1e6)
-    episodes = ", ".join(f"{x:.1f}" for x in means)
-    print(
-        f"{path}: MuJoCo {mujoco.__version__}, dt = {model.opt.timestep} s: "
-        f"{statistics.median(means):.1f} µs/step (median episode mean; episodes {episodes})"
-    )
+        mujoco.mj_step(model, data, nstep=steps)
+        means.append((time.perf_counter() - start) / steps * 1e6)
+    return means
+
+
+def main():
+    for path in sys.argv[1:]:
+        model = mujoco.MjModel.from_xml_path(path)
+        means = episode_means(model)
+        episodes = ", ".join(f"{x:.1f}" for x in means)
+        print(
+            f"{path}: MuJoCo {mujoco.__version__}, dt = {model.opt.timestep} s: "
+            f"{statistics.median(means):.1f} µs/step (median episode mean; episodes {episodes})"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -20,7 +20,6 @@ import argparse
 import re
 import statistics
 import subprocess
-import time
 
 EPISODE_MEAN = re.compile(r"([0-9.]+) µs/step \(episode mean\)")
 
@@ -41,18 +40,9 @@ def gelenk_mean(binary, scene):
 
 
 def mujoco_mean(model):
-    import mujoco
+    from mujoco_peers import episode_means  # benches/, the script's own directory
 
-    means = []
-    for _ in range(5):
-        data = mujoco.MjData(model)
-        if model.nkey > 0:
-            mujoco.mj_resetDataKeyframe(model, data, 0)
-        mujoco.mj_forward(model, data)
-        start = time.perf_counter()
-        mujoco.mj_step(model, data, nstep=2500)
-        means.append((time.perf_counter() - start) / 2500 * 1e6)
-    return statistics.median(means)
+    return statistics.median(episode_means(model))
 
 
 def named(text, what):
