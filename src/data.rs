@@ -62,9 +62,6 @@ pub struct Data {
     pub ddq: DVector<f64>,
     /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`].
     pub mass_matrix: DMatrix<f64>,
-    /// Tree-sparse `Lᵀ D L` factor of `M` (unit L below the diagonal, D on it, and L's rows
-    /// mirrored above the diagonal: entry (j, k) = L_kj for each ancestor j of k).
-    pub mass_matrix_factor: DMatrix<f64>,
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).
     pub factor_inv_sqrt_d: DVector<f64>,
@@ -114,7 +111,6 @@ impl Data {
             gravity_torque: DVector::zeros(nv),
             ddq: DVector::zeros(nv),
             mass_matrix: DMatrix::zeros(nv, nv),
-            mass_matrix_factor: DMatrix::zeros(nv, nv),
             factor_inv_sqrt_d: DVector::zeros(nv),
             factor_row_coupled: vec![true; nv],
             factor_packed: vec![0.0; model.dof_path.len() + nv],

@@ -6,14 +6,15 @@ use super::check::{check_q, check_v};
 use super::{crba, nonlinear_effects};
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::model::{Model, NO_DOF};
-use nalgebra::DVector;
+use crate::model::Model;
+use nalgebra::{DMatrix, DVector};
 
 /// Relative size below which a pivot of the factorization counts as zero.
 const PIVOT_TOLERANCE: f64 = 1e-12;
 
-/// Factors `data.mass_matrix` (from [`crba`]) into `data.mass_matrix_factor`. A joint whose
-/// subtree cannot move gives [`DynamicsError::SingularMassMatrix`].
+/// Factors `data.mass_matrix` (from [`crba`]) into M = Lᵀ D L, kept in `data` as packed rows
+/// (see [`mass_matrix_factor`] for the dense view). A joint whose subtree cannot move gives
+/// [`DynamicsError::SingularMassMatrix`].
 pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), DynamicsError> {
     let n = model.nv();
     let (paths, path_start) = (&model.dof_path, &model.dof_path_start);
@@ -62,23 +63,30 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
             row_k[p] = a;
         }
     }
-    // L's row k into the documented layout: below the diagonal and mirrored above it.
-    let h = data.mass_matrix_factor.as_mut_slice();
     for k in 0..n {
-        let path = &paths[path_start[k]..path_start[k + 1]];
-        let row = &packed[row_start(k)..row_start(k + 1)];
-        let d = row[path.len()];
-        h[k * n + k] = d;
-        data.factor_inv_sqrt_d[k] = 1.0 / d.sqrt();
-        let mut coupled = false;
-        for (&l, &j) in row.iter().zip(path) {
-            h[j * n + k] = l;
-            h[k * n + j] = l;
-            coupled |= l != 0.0;
-        }
-        data.factor_row_coupled[k] = coupled;
+        let (start, depth) = (row_start(k), path_start[k + 1] - path_start[k]);
+        data.factor_inv_sqrt_d[k] = 1.0 / packed[start + depth].sqrt();
+        data.factor_row_coupled[k] = packed[start..start + depth].iter().any(|l| *l != 0.0);
     }
     Ok(())
+}
+
+/// The factor of [`factor_mass_matrix`] as a dense nv × nv matrix, for inspection (allocates):
+/// D on the diagonal, L_kj at (k, j) and mirrored at (j, k) for each ancestor j of dof k, zero
+/// elsewhere. The factorization itself keeps only the packed rows.
+pub fn mass_matrix_factor(model: &Model, data: &Data) -> DMatrix<f64> {
+    let n = model.nv();
+    let mut h = DMatrix::zeros(n, n);
+    for k in 0..n {
+        let path = &model.dof_path[model.dof_path_start[k]..model.dof_path_start[k + 1]];
+        let row = &data.factor_packed[model.dof_path_start[k] + k..][..=path.len()];
+        h[(k, k)] = row[path.len()];
+        for (&l, &j) in row.iter().zip(path) {
+            h[(k, j)] = l;
+            h[(j, k)] = l;
+        }
+    }
+    h
 }
 
 /// Solves `M x = b` in place (`x` holds b on entry) with the factor of [`factor_mass_matrix`].
@@ -89,30 +97,34 @@ pub fn solve_mass_matrix(model: &Model, data: &Data, x: &mut DVector<f64>) {
 /// [`solve_mass_matrix`] on a slice of length nv (a column of a column-major matrix, say).
 pub fn solve_mass_matrix_slice(model: &Model, data: &Data, x: &mut [f64]) {
     debug_assert_eq!(x.len(), model.nv());
-    let h = &data.mass_matrix_factor;
-    let lambda = &model.dof_parent;
+    let (paths, path_start, packed) = (&model.dof_path, &model.dof_path_start, &data.factor_packed);
     let n = model.nv();
+    // Row i of L is packed contiguously, its ancestors root first (see factor_mass_matrix).
+    let row = |i: usize| {
+        let (start, depth) = (path_start[i], path_start[i + 1] - path_start[i]);
+        (&paths[start..start + depth], &packed[start + i..=start + i + depth])
+    };
     for i in (0..n).rev() {
         let xi = x[i];
         // Rows of a contact or joint Jacobian are zero off the branch they act on.
         if xi == 0.0 {
             continue;
         }
-        let mut j = lambda[i];
-        while j != NO_DOF {
-            x[j] -= h[(i, j)] * xi;
-            j = lambda[j];
+        let (path, l) = row(i);
+        for (&j, l) in path.iter().zip(l) {
+            x[j] -= l * xi;
         }
     }
-    for i in 0..n {
-        x[i] /= h[(i, i)];
+    for (i, xi) in x.iter_mut().enumerate() {
+        let (path, l) = row(i);
+        *xi /= l[path.len()];
     }
     for i in 0..n {
-        let mut j = lambda[i];
+        let (path, l) = row(i);
         let mut xi = x[i];
-        while j != NO_DOF {
-            xi -= h[(i, j)] * x[j];
-            j = lambda[j];
+        // Nearest ancestor first.
+        for (&j, l) in path.iter().zip(l).rev() {
+            xi -= l * x[j];
         }
         x[i] = xi;
     }
@@ -148,6 +160,7 @@ mod tests {
     use super::*;
     use crate::algorithms::crba;
     use crate::io::urdf::{load_file, UrdfOptions};
+    use crate::model::NO_DOF;
     use nalgebra::{DMatrix, DVector};
     use rand::SeedableRng;
 
@@ -163,7 +176,7 @@ mod tests {
             crba(&model, &mut data, &q).unwrap();
             factor_mass_matrix(&model, &mut data).unwrap();
             // M = Lᵀ D L with L unit lower triangular, L_kj at (k, j) for the ancestors j of k.
-            let f = &data.mass_matrix_factor;
+            let f = &mass_matrix_factor(&model, &data);
             let mut l = DMatrix::<f64>::identity(n, n);
             let mut d = DMatrix::<f64>::zeros(n, n);
             for k in 0..n {

@@ -15,7 +15,9 @@ pub(crate) use check::check_v;
 pub use crba::crba;
 pub(crate) use crba::crba_at_kinematics;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
-pub use factor::{factor_mass_matrix, forward_dynamics_crba, solve_mass_matrix, solve_mass_matrix_slice};
+pub use factor::{
+    factor_mass_matrix, forward_dynamics_crba, mass_matrix_factor, solve_mass_matrix, solve_mass_matrix_slice,
+};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
 pub use kinematics::{forward_kinematics, frame_placement};
 pub(crate) use rnea::nonlinear_effects_at_kinematics;

@@ -35,6 +35,9 @@ pub struct ProblemBuilder {
     softness: Vec<f64>,
     laws: Vec<RowLaw>,
     contacts: Vec<ContactBlock>,
+    /// Per contact block, the velocity column of the last dof on each side's path to the root
+    /// (NO_DOF: no such side, or not known): a side's rows are non-zero only on that chain.
+    contact_tails: Vec<[usize; 2]>,
     origins: Vec<RowOrigin>,
     /// Scratch of the contact rows ([`crate::collision::point_rates`]), kept between steps.
     point_rates: Vec<(usize, crate::math::Vec3)>,
@@ -117,6 +120,7 @@ impl ProblemBuilder {
             softness: Vec::new(),
             laws: Vec::new(),
             contacts: Vec::new(),
+            contact_tails: Vec::new(),
             origins: Vec::new(),
             point_rates: Vec::new(),
             friction,
@@ -195,6 +199,7 @@ impl ProblemBuilder {
         self.softness.clear();
         self.laws.clear();
         self.contacts.clear();
+        self.contact_tails.clear();
         self.origins.clear();
     }
 
@@ -250,6 +255,7 @@ impl ProblemBuilder {
     fn push_contact_rows<'f>(
         &self,
         i: usize,
+        contact: usize,
         factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
         lanes: &mut Vec<[f64; 4]>,
         sp: &mut RowSparsity,
@@ -258,34 +264,69 @@ impl ProblemBuilder {
         // each row (None: the row is zero on that block).
         lanes.clear();
         let mut lasts = [[None; 3]; MAX_CONTACT_SEGMENTS];
-        let mut shape = [(0usize, 0usize); MAX_CONTACT_SEGMENTS];
+        let mut shape = [(0usize, 0usize, None); MAX_CONTACT_SEGMENTS];
         let mut count = 0;
         let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
         while let (Some((b, _, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next()) {
             let offset = lanes.len();
-            lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
-            lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
-            let last = lasts[count].iter().flatten().max().copied();
-            if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
-                factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
+            let chain = match (self.chain_tail_in_block(contact, b), factor_of(b)) {
+                (Some(tail), Some((factor, first_dof))) => Some((factor, first_dof, first_dof + tail)),
+                _ => None,
+            };
+            if let Some((factor, first_dof, tail)) = chain {
+                // The side's one body: its rows are non-zero only on the chain of its path to
+                // the root, whose dofs' ancestors are prefixes of it. Gather the chain, scale it.
+                let (path, _) = factor.chain(tail);
+                let k_of = |p: usize| path.get(p).copied().unwrap_or(tail) - first_dof;
+                lanes.extend((0..=path.len()).map(|p| {
+                    let k = k_of(p);
+                    [j0[k], j1[k], j2[k], 0.0]
+                }));
+                let u = &mut lanes[offset..];
+                for (r, last) in lasts[count].iter_mut().enumerate() {
+                    *last = u.iter().rposition(|x| x[r] != 0.0).map(k_of);
+                }
+                if lasts[count].iter().any(Option::is_some) {
+                    factor.scale_chain_lanes(tail, u);
+                }
             } else {
-                lanes[offset..].fill([0.0; 4]);
+                lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
+                lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
+                let last = lasts[count].iter().flatten().max().copied();
+                if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
+                    factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
+                } else {
+                    lanes[offset..].fill([0.0; 4]);
+                }
             }
-            shape[count] = (b, offset);
+            shape[count] = (b, offset, chain);
             count += 1;
         }
         for r in 0..3 {
             let mut norm2 = 0.0;
             for s in 0..count {
                 let Some(last) = lasts[s][r] else { continue };
-                let (b, offset) = shape[s];
+                let (b, offset, chain) = shape[s];
                 let width = self.blocks[b].1;
                 let start = sp.w_values.len();
-                sp.w_values.extend(lanes[offset..offset + width].iter().map(|u| u[r]));
-                let span = match sp.w_values[start..=start + last].iter().position(|x| *x != 0.0) {
-                    Some(lo) => (lo, last + 1),
-                    None => (0, 0),
+                let lo = if let Some((factor, first_dof, tail)) = chain {
+                    // Zeros off the chain, the chain's entries scattered to their columns.
+                    sp.w_values.resize(start + width, 0.0);
+                    let (path, _) = factor.chain(tail);
+                    let mut lo = None;
+                    for (&dof, u) in path.iter().chain([&tail]).zip(&lanes[offset..]) {
+                        let k = dof - first_dof;
+                        sp.w_values[start + k] = u[r];
+                        if lo.is_none() && u[r] != 0.0 {
+                            lo = Some(k);
+                        }
+                    }
+                    lo
+                } else {
+                    sp.w_values.extend(lanes[offset..offset + width].iter().map(|u| u[r]));
+                    sp.w_values[start..=start + last].iter().position(|x| *x != 0.0)
                 };
+                let span = lo.map_or((0, 0), |lo| (lo, last + 1));
                 norm2 += push_segment(sp, b, start, span);
             }
             sp.row_norm2.push(norm2);
@@ -294,9 +335,32 @@ impl ProblemBuilder {
         }
     }
 
+    /// The column, within block `b`, of the one chain tail of contact `contact` in that block
+    /// (None: no tail known there, or both sides' chains are in it — a union of two paths).
+    fn chain_tail_in_block(&self, contact: usize, b: usize) -> Option<usize> {
+        let mut tails = self.contact_tails.get(contact)?.iter().filter(|&&t| t != NO_DOF);
+        let in_block = |t: usize| self.block_of_col[t] as usize == b;
+        match (tails.next(), tails.next()) {
+            (Some(&t), None) if in_block(t) => Some(t - self.blocks[b].0),
+            (Some(&t), Some(&u)) if in_block(t) != in_block(u) => {
+                Some(if in_block(t) { t } else { u } - self.blocks[b].0)
+            }
+            _ => None,
+        }
+    }
+
     /// Registers a contact block whose normal row is `normal` (the two friction rows follow it).
     pub fn push_contact_block(&mut self, block: ContactBlock) -> usize {
+        self.push_contact_block_on_chains(block, [NO_DOF; 2])
+    }
+
+    /// [`Self::push_contact_block`] for a contact whose rows are non-zero only on the paths to
+    /// the root of its sides' bodies: `tails` holds the velocity column of the last dof of each
+    /// side's path (NO_DOF: a static side). Assembly then scales the rows along those chains
+    /// only ([`TreeFactor::scale_chain_lanes`]).
+    pub(crate) fn push_contact_block_on_chains(&mut self, block: ContactBlock, tails: [usize; 2]) -> usize {
         self.contacts.push(block);
+        self.contact_tails.push(tails);
         self.contacts.len() - 1
     }
 
@@ -400,7 +464,7 @@ impl ProblemBuilder {
                 next_contact += 1;
             }
             if self.contacts.get(next_contact).is_some_and(|c| c.normal == i) && self.same_blocks(i, 3) {
-                self.push_contact_rows(i, &factor_of, &mut lanes, sp);
+                self.push_contact_rows(i, next_contact, &factor_of, &mut lanes, sp);
                 i += 3;
                 continue;
             }
@@ -498,8 +562,8 @@ fn push_segment(sp: &mut RowSparsity, b: usize, start: usize, span: (usize, usiz
     dot(w, w)
 }
 
-/// Builds the problem of a single multibody: `data.mass_matrix_factor` must hold the factor of
-/// M(q) ([`crate::algorithms::factor_mass_matrix`]).
+/// Builds the problem of a single multibody whose M(q) [`crate::algorithms::factor_mass_matrix`]
+/// has factored in `data`.
 pub fn assemble_single(
     builder: &ProblemBuilder,
     model: &Model,
@@ -514,7 +578,11 @@ pub fn assemble_single(
 /// L's entries below the diagonal and D on the diagonal of `factor`, `dof_parent` the tree.
 #[derive(Clone, Copy, Debug)]
 pub struct TreeFactor<'a> {
-    factor: &'a DMatrix<f64>,
+    /// L's rows packed along each dof's path ([`crate::algorithms::factor_mass_matrix`]): dof
+    /// k's ancestors' entries, root first, then D_k, from `dof_path_start[k] + k`.
+    packed: &'a [f64],
+    dof_path: &'a [usize],
+    dof_path_start: &'a [usize],
     inv_sqrt_d: &'a [f64],
     coupled: &'a [bool],
     dof_parent: &'a [usize],
@@ -522,10 +590,13 @@ pub struct TreeFactor<'a> {
 }
 
 impl<'a> TreeFactor<'a> {
-    /// The factor held in `data` (`data.mass_matrix_factor` must be current).
+    /// The factor held in `data` ([`crate::algorithms::factor_mass_matrix`] must have factored
+    /// the current M).
     pub fn new(model: &'a Model, data: &'a Data) -> Self {
         Self {
-            factor: &data.mass_matrix_factor,
+            packed: &data.factor_packed,
+            dof_path: &model.dof_path,
+            dof_path_start: &model.dof_path_start,
             inv_sqrt_d: data.factor_inv_sqrt_d.as_slice(),
             coupled: &data.factor_row_coupled,
             dof_parent: &model.dof_parent,
@@ -533,16 +604,84 @@ impl<'a> TreeFactor<'a> {
         }
     }
 
-    /// Column `k` of the factor: L_kj at index j for the ancestors j of k (the mirror).
-    fn column(&self, k: usize) -> &[f64] {
-        let n = self.factor.nrows();
-        &self.factor.as_slice()[k * n..(k + 1) * n]
+    /// L_kj for the ancestors j of dof k in `start..end` (a stretch of consecutive ancestors):
+    /// k's packed row holds its ancestors root first, so the stretch is contiguous there, from
+    /// the position of `start` on k's path (its depth).
+    fn stretch(&self, k: usize, start: usize, end: usize) -> &'a [f64] {
+        let depth_of_start = self.dof_path_start[start + 1] - self.dof_path_start[start];
+        let from = self.dof_path_start[k] + k + depth_of_start;
+        &self.packed[from..from + (end - start)]
+    }
+
+    /// The ancestors of dof `tail`, root first, and where dof `tail`'s packed row of L starts.
+    fn chain(&self, tail: usize) -> (&'a [usize], usize) {
+        let (start, end) = (self.dof_path_start[tail], self.dof_path_start[tail + 1]);
+        (&self.dof_path[start..end], start + tail)
+    }
+
+    /// [`Self::scale_lanes`] for rows non-zero only on the chain of dof `tail` and its
+    /// ancestors: `u[p]` holds the lanes at the chain's p-th dof (root first, `tail` last). The
+    /// ancestors of the chain's p-th dof are its first p dofs, and that dof's packed row of L
+    /// holds their entries in the same order, so the back substitution is a dense triangular
+    /// one over the chain: no walk of ancestor stretches, no scan of the block's other dofs.
+    fn scale_chain_lanes(&self, tail: usize, u: &mut [[f64; 4]]) {
+        let (path, _) = self.chain(tail);
+        debug_assert_eq!(u.len(), path.len() + 1);
+        let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
+        // Entry q collects L_pq u_p from the later entries p, the latest first: the order in
+        // which a right-looking pass (each u_p subtracted from all earlier entries) would
+        // apply them, with the running value in a register instead of stored and reloaded
+        // once per later entry.
+        for q in (0..u.len()).rev() {
+            let mut uq = u[q];
+            for p in (q + 1..u.len()).rev() {
+                let dof = dof_at(p);
+                let l = self.packed[self.dof_path_start[dof] + dof + q];
+                let up = u[p];
+                for a in 0..4 {
+                    uq[a] -= l * up[a];
+                }
+            }
+            u[q] = uq;
+        }
+        for (p, w) in u.iter_mut().enumerate() {
+            let s = self.inv_sqrt_d[dof_at(p)];
+            for x in w.iter_mut() {
+                *x *= s;
+            }
+        }
     }
 
     /// For one row segment J (on the dofs `first_dof..first_dof + w.len()` of a block that is a
     /// union of whole root subtrees, `w` holding J on entry, `last` its last non-zero entry):
     /// writes w = D^{-1/2} L⁻ᵀ Jᵀ and returns the span [lo, hi) outside which w is zero.
     fn scale_row(&self, first_dof: usize, last: usize, w: &mut [f64]) -> (usize, usize) {
+        let tail = first_dof + last;
+        if w[..=last].iter().position(|x| *x != 0.0).is_some_and(|lo| first_dof + lo >= self.run_start[tail])
+        {
+            // Non-zero only within the stretch of consecutive ancestors that ends at the last
+            // entry (a joint limit's or motor's row: its joint's dofs), so on the chain of
+            // that dof's path: entry by entry from the last, as in `scale_chain_lanes`.
+            let (path, _) = self.chain(tail);
+            let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
+            for q in (0..=path.len()).rev() {
+                let mut wq = w[dof_at(q) - first_dof];
+                for p in (q + 1..=path.len()).rev() {
+                    let dof = dof_at(p);
+                    wq -= self.packed[self.dof_path_start[dof] + dof + q] * w[dof - first_dof];
+                }
+                w[dof_at(q) - first_dof] = wq;
+            }
+            let mut lo = None;
+            for dof in path.iter().copied().chain([tail]) {
+                let k = dof - first_dof;
+                w[k] *= self.inv_sqrt_d[dof];
+                if lo.is_none() && w[k] != 0.0 {
+                    lo = Some(k);
+                }
+            }
+            return lo.map_or((0, 0), |lo| (lo, last + 1));
+        }
         // w ← L⁻ᵀ w, walking each non-zero entry's ancestors (they have lower indices) in
         // contiguous stretches, L_kj read from the factor's mirrored column k.
         for k in (0..=last).rev() {
@@ -551,10 +690,11 @@ impl<'a> TreeFactor<'a> {
             if wk == 0.0 || !self.coupled[row] {
                 continue;
             }
-            let column = self.column(row);
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
-                for (w, l) in w[start - first_dof..end - first_dof].iter_mut().zip(&column[start..end]) {
+                for (w, l) in
+                    w[start - first_dof..end - first_dof].iter_mut().zip(self.stretch(row, start, end))
+                {
                     *w -= l * wk;
                 }
                 let next = self.dof_parent[start];
@@ -582,10 +722,11 @@ impl<'a> TreeFactor<'a> {
             if uk == [0.0; 4] || !self.coupled[row] {
                 continue;
             }
-            let column = self.column(row);
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
-                for (w, l) in u[start - first_dof..end - first_dof].iter_mut().zip(&column[start..end]) {
+                for (w, l) in
+                    u[start - first_dof..end - first_dof].iter_mut().zip(self.stretch(row, start, end))
+                {
                     for a in 0..4 {
                         w[a] -= l * uk[a];
                     }
@@ -611,7 +752,6 @@ impl<'a> TreeFactor<'a> {
         // Entries below lo stay zero: no dof there has an ancestor at or above lo.
         for k in lo..x.len() {
             let row = first_dof + k;
-            let column = self.column(row);
             let mut xk = x[k] * self.inv_sqrt_d[row];
             if !self.coupled[row] {
                 x[k] = xk;
@@ -619,7 +759,7 @@ impl<'a> TreeFactor<'a> {
             }
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
-                xk -= dot(&column[start..end], &x[start - first_dof..end - first_dof]);
+                xk -= dot(self.stretch(row, start, end), &x[start - first_dof..end - first_dof]);
                 let next = self.dof_parent[start];
                 if next == NO_DOF {
                     break;

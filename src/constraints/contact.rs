@@ -6,7 +6,7 @@
 use super::{ContactBlock, ProblemBuilder, RowLaw, RowOrigin};
 use crate::collision::{add_point_rates_row, point_rates, tangents, Attachment, Contact};
 use crate::data::Data;
-use crate::model::Model;
+use crate::model::{Model, NO_DOF};
 use nalgebra::DVector;
 
 /// Contact parameters of a pair of surfaces (ODE's `dSurfaceParameters`, in SI units).
@@ -125,12 +125,19 @@ pub fn add_contact_rows_with<'a>(
         let origin = RowOrigin::Contact(first_index + i);
         let (t1, t2) = tangents(&contact.normal);
         rates.clear();
-        for (side, point, sign) in
-            [(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)]
+        let mut tails = [NO_DOF; 2];
+        for (tail, (side, point, sign)) in tails
+            .iter_mut()
+            .zip([(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)])
         {
             if let Attachment::Body { multibody, body } = side {
                 let (model, data, col) = system(multibody);
+                let before = rates.len();
                 point_rates(model, data, body, &point, sign, col, &mut rates);
+                // point_rates walks the body's path from its last dof up.
+                if let Some(&(last, _)) = rates.get(before) {
+                    *tail = last;
+                }
             }
         }
         let p = parameters(contact);
@@ -148,7 +155,8 @@ pub fn add_contact_rows_with<'a>(
         let approach = builder.row_dot(normal_row, v.as_slice());
         let target = p.target_normal_velocity(contact.distance, approach, h);
         builder.set_target(normal_row, target);
-        builder.push_contact_block(ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) });
+        let block = ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) };
+        builder.push_contact_block_on_chains(block, tails);
     }
     builder.put_point_rates(rates);
 }
