@@ -656,34 +656,8 @@ impl<'a> TreeFactor<'a> {
     /// union of whole root subtrees, `w` holding J on entry, `last` its last non-zero entry):
     /// writes w = D^{-1/2} L⁻ᵀ Jᵀ and returns the span [lo, hi) outside which w is zero.
     fn scale_row(&self, first_dof: usize, last: usize, w: &mut [f64]) -> (usize, usize) {
-        let tail = first_dof + last;
-        if w[..=last].iter().position(|x| *x != 0.0).is_some_and(|lo| first_dof + lo >= self.run_start[tail])
-        {
-            // Non-zero only within the stretch of consecutive ancestors that ends at the last
-            // entry (a joint limit's or motor's row: its joint's dofs), so on the chain of
-            // that dof's path: entry by entry from the last, as in `scale_chain_lanes`.
-            let (path, _) = self.chain(tail);
-            let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
-            for q in (0..=path.len()).rev() {
-                let mut wq = w[dof_at(q) - first_dof];
-                for p in (q + 1..=path.len()).rev() {
-                    let dof = dof_at(p);
-                    wq -= self.packed[self.dof_path_start[dof] + dof + q] * w[dof - first_dof];
-                }
-                w[dof_at(q) - first_dof] = wq;
-            }
-            let mut lo = None;
-            for dof in path.iter().copied().chain([tail]) {
-                let k = dof - first_dof;
-                w[k] *= self.inv_sqrt_d[dof];
-                if lo.is_none() && w[k] != 0.0 {
-                    lo = Some(k);
-                }
-            }
-            return lo.map_or((0, 0), |lo| (lo, last + 1));
-        }
         // w ← L⁻ᵀ w, walking each non-zero entry's ancestors (they have lower indices) in
-        // contiguous stretches, L_kj read from the factor's mirrored column k.
+        // contiguous stretches, L_kj read from k's packed row.
         for k in (0..=last).rev() {
             let wk = w[k];
             let row = first_dof + k;
@@ -899,7 +873,7 @@ mod tests {
     }
 
     #[test]
-    fn contact_rows_scaled_as_lanes_give_the_delassus_matrix_of_a_dense_solve() {
+    fn contact_rows_scaled_as_lanes_or_chains_give_the_delassus_matrix_of_a_dense_solve() {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
         let model = load_file(path, &UrdfOptions::floating()).unwrap();
         let mut rng = rand::rngs::StdRng::seed_from_u64(3);
@@ -931,7 +905,11 @@ mod tests {
                     row[0] = 0.0;
                 }
             }
-            builder.push_contact_block(ContactBlock { normal, mu: 0.5, mu2: 0.5 });
+            // Both sides' chains recorded, as `add_contact_rows_with` does: the contact with the
+            // world is scaled along its chain, the self-contact (two chains in one block) by
+            // the walk of ancestor stretches.
+            let tails = [last_dof_of(&model, a), b.map_or(NO_DOF, |b| last_dof_of(&model, b))];
+            builder.push_contact_block_on_chains(ContactBlock { normal, mu: 0.5, mu2: 0.5 }, tails);
             let (_, mut row) = builder.push_row(RowLaw::Unilateral, 0.0, 0.0, RowOrigin::Other);
             fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
         }
