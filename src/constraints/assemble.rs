@@ -276,7 +276,7 @@ impl ProblemBuilder {
             if let Some((factor, first_dof, tail)) = chain {
                 // The side's one body: its rows are non-zero only on the chain of its path to
                 // the root, whose dofs' ancestors are prefixes of it. Gather the chain, scale it.
-                let (path, _) = factor.chain(tail);
+                let path = factor.chain(tail);
                 let k_of = |p: usize| path.get(p).copied().unwrap_or(tail) - first_dof;
                 lanes.extend((0..=path.len()).map(|p| {
                     let k = k_of(p);
@@ -312,7 +312,7 @@ impl ProblemBuilder {
                 let lo = if let Some((factor, first_dof, tail)) = chain {
                     // Zeros off the chain, the chain's entries scattered to their columns.
                     sp.w_values.resize(start + width, 0.0);
-                    let (path, _) = factor.chain(tail);
+                    let path = factor.chain(tail);
                     let mut lo = None;
                     for (&dof, u) in path.iter().chain([&tail]).zip(&lanes[offset..]) {
                         let k = dof - first_dof;
@@ -613,10 +613,9 @@ impl<'a> TreeFactor<'a> {
         &self.packed[from..from + (end - start)]
     }
 
-    /// The ancestors of dof `tail`, root first, and where dof `tail`'s packed row of L starts.
-    fn chain(&self, tail: usize) -> (&'a [usize], usize) {
-        let (start, end) = (self.dof_path_start[tail], self.dof_path_start[tail + 1]);
-        (&self.dof_path[start..end], start + tail)
+    /// The ancestors of dof `tail`, root first.
+    fn chain(&self, tail: usize) -> &'a [usize] {
+        &self.dof_path[self.dof_path_start[tail]..self.dof_path_start[tail + 1]]
     }
 
     /// [`Self::scale_lanes`] for rows non-zero only on the chain of dof `tail` and its
@@ -625,7 +624,7 @@ impl<'a> TreeFactor<'a> {
     /// holds their entries in the same order, so the back substitution is a dense triangular
     /// one over the chain: no walk of ancestor stretches, no scan of the block's other dofs.
     fn scale_chain_lanes(&self, tail: usize, u: &mut [[f64; 4]]) {
-        let (path, _) = self.chain(tail);
+        let path = self.chain(tail);
         debug_assert_eq!(u.len(), path.len() + 1);
         let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
         // Entry q collects L_pq u_p from the later entries p, the latest first: the order in
