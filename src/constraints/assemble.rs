@@ -269,8 +269,14 @@ impl ProblemBuilder {
         let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
         while let (Some((b, _, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next()) {
             let offset = lanes.len();
+            // Along the chain only where it is shorter than the block (a free body's chain is
+            // its whole block: there the dense lanes are cheaper).
             let chain = match (self.chain_tail_in_block(contact, b), factor_of(b)) {
-                (Some(tail), Some((factor, first_dof))) => Some((factor, first_dof, first_dof + tail)),
+                (Some(tail), Some((factor, first_dof)))
+                    if factor.chain(first_dof + tail).len() + 1 < j0.len() =>
+                {
+                    Some((factor, first_dof, first_dof + tail))
+                }
                 _ => None,
             };
             if let Some((factor, first_dof, tail)) = chain {
@@ -338,13 +344,11 @@ impl ProblemBuilder {
     /// The column, within block `b`, of the one chain tail of contact `contact` in that block
     /// (None: no tail known there, or both sides' chains are in it — a union of two paths).
     fn chain_tail_in_block(&self, contact: usize, b: usize) -> Option<usize> {
-        let mut tails = self.contact_tails.get(contact)?.iter().filter(|&&t| t != NO_DOF);
-        let in_block = |t: usize| self.block_of_col[t] as usize == b;
-        match (tails.next(), tails.next()) {
-            (Some(&t), None) if in_block(t) => Some(t - self.blocks[b].0),
-            (Some(&t), Some(&u)) if in_block(t) != in_block(u) => {
-                Some(if in_block(t) { t } else { u } - self.blocks[b].0)
-            }
+        let [t, u] = *self.contact_tails.get(contact)?;
+        let in_block = |t: usize| t != NO_DOF && self.block_of_col[t] as usize == b;
+        match (in_block(t), in_block(u)) {
+            (true, false) => Some(t - self.blocks[b].0),
+            (false, true) => Some(u - self.blocks[b].0),
             _ => None,
         }
     }
@@ -631,7 +635,10 @@ impl<'a> TreeFactor<'a> {
         // which a right-looking pass (each u_p subtracted from all earlier entries) would
         // apply them, with the running value in a register instead of stored and reloaded
         // once per later entry.
-        for q in (0..u.len()).rev() {
+        // Rows of L that are zero off the diagonal (a free body whose origin is its centre of
+        // mass, on principal axes: a box of a stack) give nothing.
+        let coupled = (0..u.len()).any(|p| self.coupled[dof_at(p)]);
+        for q in (0..u.len()).rev().filter(|_| coupled) {
             let mut uq = u[q];
             for p in (q + 1..u.len()).rev() {
                 let dof = dof_at(p);
