@@ -634,21 +634,21 @@ impl<'a> TreeFactor<'a> {
         // Entry q collects L_pq u_p from the later entries p, the latest first: the order in
         // which a right-looking pass (each u_p subtracted from all earlier entries) would
         // apply them, with the running value in a register instead of stored and reloaded
-        // once per later entry.
-        // Rows of L that are zero off the diagonal (a free body whose origin is its centre of
-        // mass, on principal axes: a box of a stack) give nothing.
-        let coupled = (0..u.len()).any(|p| self.coupled[dof_at(p)]);
-        for q in (0..u.len()).rev().filter(|_| coupled) {
-            let mut uq = u[q];
-            for p in (q + 1..u.len()).rev() {
-                let dof = dof_at(p);
-                let l = self.packed[self.dof_path_start[dof] + dof + q];
-                let up = u[p];
-                for a in 0..4 {
-                    uq[a] -= l * up[a];
+        // once per later entry. A chain whose rows of L are all zero off the diagonal (bodies
+        // whose origins are their centres of mass, on principal axes) has nothing to collect.
+        if (0..u.len()).any(|p| self.coupled[dof_at(p)]) {
+            for q in (0..u.len()).rev() {
+                let mut uq = u[q];
+                for p in (q + 1..u.len()).rev() {
+                    let dof = dof_at(p);
+                    let l = self.packed[self.dof_path_start[dof] + dof + q];
+                    let up = u[p];
+                    for a in 0..4 {
+                        uq[a] -= l * up[a];
+                    }
                 }
+                u[q] = uq;
             }
-            u[q] = uq;
         }
         for (p, w) in u.iter_mut().enumerate() {
             let s = self.inv_sqrt_d[dof_at(p)];
