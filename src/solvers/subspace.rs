@@ -344,7 +344,7 @@ pub(crate) fn subspace_step(
         }
         solved = true;
         let (alpha, blocking) = step_length(problem, &candidate, ws);
-        if alpha <= 0.0 {
+        if alpha <= ZERO_STEP {
             if let Some((row, _)) = ws.released {
                 ws.release_refused.push(row);
             }
@@ -529,6 +529,11 @@ const MAX_ROUNDS: usize = 8;
 /// more rounds are worth their reduced solves (a cold nine-contact humanoid step: 64 sweeps with
 /// 8 rounds, 16 with 16).
 const MAX_PYRAMID_ROUNDS: usize = 16;
+
+/// A step this short undid the release that preceded it: rounding leaves α ≈ 1e-18 where a
+/// degenerate contact set blocks at zero, and a release refused only at exactly zero cycled
+/// through all rounds (the ragdoll's 16 unconverged steps in a row: 16 rounds each, not 6).
+const ZERO_STEP: f64 = 1e-12;
 
 /// Largest turn of a sliding direction per round (rad): Newton's step on θ is cut there.
 const MAX_TURN: f64 = 0.5;
