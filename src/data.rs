@@ -60,7 +60,8 @@ pub struct Data {
     /// Generalized acceleration from [`crate::algorithms::aba`] or
     /// [`crate::algorithms::forward_dynamics_crba`].
     pub ddq: DVector<f64>,
-    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`].
+    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`]. A
+    /// world's step does not write it: its CRBA fills the factorization's packed rows directly.
     pub mass_matrix: DMatrix<f64>,
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).

@@ -16,29 +16,49 @@ const PIVOT_TOLERANCE: f64 = 1e-12;
 /// (see [`mass_matrix_factor`] for the dense view). A joint whose subtree cannot move gives
 /// [`DynamicsError::SingularMassMatrix`].
 pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), DynamicsError> {
+    pack_mass_matrix(model, data);
+    factor_packed_mass_matrix(model, data)
+}
+
+/// Gathers `data.mass_matrix`'s tree entries into the factorization's packed rows
+/// (`data.factor_packed`): row k holds M_kj for the ancestors j of k, root first, then M_kk; the
+/// rest of a tree's M is zero and of no use (ten free boxes: 210 of 3600 entries).
+pub(crate) fn pack_mass_matrix(model: &Model, data: &mut Data) {
     let n = model.nv();
     let (paths, path_start) = (&model.dof_path, &model.dof_path_start);
     let m = data.mass_matrix.as_slice();
-    // RBDA §6.5's LTDL on packed rows (MuJoCo's sparse factorization does the same): row k holds
-    // H_kj for the ancestors j of k, root first, then H_kk. The ancestors of an ancestor i of k
-    // are a prefix of k's (a path to the root is a chain), so the update of row i by row k is
-    // one axpy over that prefix, with no index lookups. Only the entries (k, j) with j an
-    // ancestor of k (or k) are read and written: the rest of a tree's M is zero and of no use
-    // (ten free boxes: 210 of 3600 entries).
-    let packed = &mut data.factor_packed;
-    let row_start = |k: usize| path_start[k] + k;
     for k in 0..n {
         let path = &paths[path_start[k]..path_start[k + 1]];
-        let row = &mut packed[row_start(k)..row_start(k + 1)];
+        let row = &mut data.factor_packed[path_start[k] + k..path_start[k + 1] + k + 1];
         for (x, &j) in row.iter_mut().zip(path) {
             *x = m[k * n + j];
         }
         row[path.len()] = m[k * n + k];
     }
+}
+
+/// [`factor_mass_matrix`] on M's packed rows, already in `data.factor_packed` (from
+/// [`super::crba::crba_packed_at_kinematics`], or gathered from the dense M).
+pub(crate) fn factor_packed_mass_matrix(model: &Model, data: &mut Data) -> Result<(), DynamicsError> {
+    let n = model.nv();
+    let (paths, path_start) = (&model.dof_path, &model.dof_path_start);
+    // RBDA §6.5's LTDL on packed rows (MuJoCo's sparse factorization does the same): row k holds
+    // H_kj for the ancestors j of k, root first, then H_kk. The ancestors of an ancestor i of k
+    // are a prefix of k's (a path to the root is a chain), so the update of row i by row k is
+    // one axpy over that prefix, with no index lookups. Only the entries (k, j) with j an
+    // ancestor of k (or k) are read and written.
+    let packed = &mut data.factor_packed;
+    let row_start = |k: usize| path_start[k] + k;
+    // M's diagonal, the scale of each pivot's zero test (the rows are overwritten by L and D);
+    // kept where 1/√D goes at the end.
+    let reference = &mut data.factor_inv_sqrt_d;
+    for k in 0..n {
+        reference[k] = packed[path_start[k + 1] + k];
+    }
     for k in (0..n).rev() {
         let (start, depth) = (row_start(k), path_start[k + 1] - path_start[k]);
         let pivot = packed[start + depth];
-        if pivot.is_nan() || pivot <= 0.0 || pivot <= PIVOT_TOLERANCE * m[k * n + k] {
+        if pivot.is_nan() || pivot <= 0.0 || pivot <= PIVOT_TOLERANCE * reference[k] {
             return Err(DynamicsError::SingularMassMatrix {
                 joint: model.joint_name(model.dof_joint(k)).to_string(),
             });

@@ -13,11 +13,12 @@ mod rnea;
 pub use aba::aba;
 pub(crate) use check::check_v;
 pub use crba::crba;
-pub(crate) use crba::crba_at_kinematics;
+pub(crate) use crba::crba_packed_at_kinematics;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use factor::{
     factor_mass_matrix, forward_dynamics_crba, mass_matrix_factor, solve_mass_matrix, solve_mass_matrix_slice,
 };
+pub(crate) use factor::{factor_packed_mass_matrix, pack_mass_matrix};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
 pub use kinematics::{forward_kinematics, frame_placement};
 pub(crate) use rnea::nonlinear_effects_at_kinematics;

@@ -3,7 +3,9 @@
 //! The world's free-motion phase uses the same function.
 
 use super::{check_step, Integrator, IntegratorError};
-use crate::algorithms::{crba, factor_mass_matrix, nonlinear_effects, solve_mass_matrix_slice};
+use crate::algorithms::{
+    crba, factor_packed_mass_matrix, nonlinear_effects, pack_mass_matrix, solve_mass_matrix_slice,
+};
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::model::{Joint, Model};
@@ -63,8 +65,8 @@ impl ImplicitTerms {
 /// The velocity after one step implicit in damping and springs:
 /// `v_out = v + h M̃⁻¹ (τ − C v − g − D v − K (s + h v) − c ṡ)`, `M̃ = M + h D + h (c + h k)` on the
 /// suspension dofs. On entry `rhs` holds the applied joint forces τ (N·m or N); on exit it holds
-/// the acceleration `(v_out − v)/h`. Leaves `data.mass_matrix` factored (of `M̃`), for the
-/// world's constraint rows.
+/// the acceleration `(v_out − v)/h`. Leaves M in `data.mass_matrix` and the factor of `M̃` in
+/// `data` (for the world's constraint rows).
 #[allow(clippy::too_many_arguments)]
 pub fn implicit_free_velocity(
     model: &Model,
@@ -78,13 +80,15 @@ pub fn implicit_free_velocity(
 ) -> Result<(), DynamicsError> {
     // Dynamics first: they check the lengths and finiteness of q and v.
     crba(model, data, q)?;
+    pack_mass_matrix(model, data);
     nonlinear_effects(model, data, q, v)?;
     implicit_velocity_from_dynamics(model, data, terms, q, v, h, rhs, v_out)
 }
 
-/// The rest of [`implicit_free_velocity`] once `data` holds M (`data.mass_matrix`) and the
-/// bias forces (`data.nle`) at (q, v): the world's step computes those from its kinematics
-/// phase ([`crate::algorithms::crba_at_kinematics`]) and calls this directly.
+/// The rest of [`implicit_free_velocity`] once `data` holds M's packed rows
+/// (`data.factor_packed`) and the bias forces (`data.nle`) at (q, v): the world's step computes
+/// those from its kinematics phase ([`crate::algorithms::crba_packed_at_kinematics`]) and calls
+/// this directly.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn implicit_velocity_from_dynamics(
     model: &Model,
@@ -101,13 +105,15 @@ pub(crate) fn implicit_velocity_from_dynamics(
     }
     terms.subtract_passive_forces(model, q, v, h, rhs);
     *rhs -= &data.nle;
+    // M_kk is the last entry of dof k's packed row.
+    let diagonal = |k: usize| model.dof_path_start[k + 1] + k;
     for (k, d) in model.damping().iter().enumerate() {
-        data.mass_matrix[(k, k)] += h * d;
+        data.factor_packed[diagonal(k)] += h * d;
     }
     for &(_, iv, k, c) in &terms.suspensions {
-        data.mass_matrix[(iv, iv)] += h * c + h * h * k;
+        data.factor_packed[diagonal(iv)] += h * c + h * h * k;
     }
-    factor_mass_matrix(model, data)?;
+    factor_packed_mass_matrix(model, data)?;
     solve_mass_matrix_slice(model, data, rhs.as_mut_slice());
     v_out.copy_from(v);
     v_out.axpy(h, rhs, 1.0);

@@ -543,6 +543,7 @@ fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     let e0 = w.total_energy();
     let (mut closure, mut de, mut kinetic) = (0.0f64, 0.0f64, 0.0f64);
     let mut schemes: Vec<&'static str> = Vec::new();
+    let mut scratch = crate::data::Data::new(w.multibody(m).model());
     for _ in 0..steps(10.0, setting.dt) {
         w.step()?;
         note_scheme(&mut schemes, w.stats().integrator);
@@ -550,8 +551,9 @@ fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
         let e = w.total_energy();
         de = de.max((e - e0).abs());
         let b = w.multibody(m);
-        let v = b.state.v.clone();
-        kinetic = kinetic.max(0.5 * v.dot(&(&b.data().mass_matrix * &v)));
+        let energy = crate::algorithms::kinetic_energy(b.model(), &mut scratch, &b.state.q, &b.state.v)
+            .map_err(|source| StepError::Dynamics { multibody: "four-bar".into(), source })?;
+        kinetic = kinetic.max(energy);
     }
     let relative = de / kinetic.max(f64::MIN_POSITIVE);
     Ok(Outcome {

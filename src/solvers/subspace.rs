@@ -637,10 +637,12 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
         return false;
     }
-    // Proximal iteration x ← x + (K + εI)⁻¹ (r − K x).
+    // Proximal iteration x ← x + (K + εI)⁻¹ (r − K x), from x = 0: its first step is the
+    // plain solve.
     ws.x.clear();
-    ws.x.resize(s, 0.0);
-    for _ in 0..REFINEMENTS {
+    ws.x.extend_from_slice(&ws.rhs);
+    lu_solve(&ws.lu, &ws.pivots, s, &mut ws.x);
+    for _ in 1..REFINEMENTS {
         ws.correction.clear();
         for u in 0..s {
             let kx: f64 = crate::constraints::dot(&ws.k[u * s..(u + 1) * s], &ws.x);

@@ -2,7 +2,7 @@
 //! its share of a step.
 
 use crate::algorithms::{
-    aba, check_v, compute_joint_jacobians, crba_at_kinematics, factor_mass_matrix,
+    aba, check_v, compute_joint_jacobians, crba_packed_at_kinematics, factor_mass_matrix,
     nonlinear_effects_at_kinematics, solve_mass_matrix_slice,
 };
 use crate::data::Data;
@@ -296,7 +296,7 @@ impl Multibody {
         // The step's kinematics phase computed the joint transforms at this q: CRBA and RNEA
         // skip them.
         check_v(&self.model, &self.state.v, "v")?;
-        crba_at_kinematics(&self.model, &mut self.data);
+        crba_packed_at_kinematics(&self.model, &mut self.data);
         nonlinear_effects_at_kinematics(&self.model, &mut self.data, &self.state.v);
         implicit_velocity_from_dynamics(
             &self.model,
