@@ -443,7 +443,8 @@ const GROUP: usize = 4;
 /// or a world too wide for the copy) entry by entry.
 fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     let m = ws.rows.len();
-    ws.gram.clear();
+    // Every entry is written below (a block of two groups that share no column as zeros): no
+    // clearing of the m² entries first.
     ws.gram.resize(m * m, 0.0);
     let sp = &problem.sparsity;
     let nv = sp.nv;
@@ -486,11 +487,14 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
             for &(b, count_b, offset_b) in &ws.groups[g..] {
                 let (lo_b, hi_b) = ws.w_range[b];
                 let (lo, hi) = (lo_a.max(lo_b), hi_a.min(hi_b));
-                if lo >= hi {
-                    continue;
-                }
-                let ua = &ws.w_lanes[offset_a + lo - lo_a..offset_a + hi - lo_a];
-                let ub = &ws.w_lanes[offset_b + lo - lo_b..offset_b + hi - lo_b];
+                let (ua, ub): (&[[f64; GROUP]], &[[f64; GROUP]]) = if lo < hi {
+                    (
+                        &ws.w_lanes[offset_a + lo - lo_a..offset_a + hi - lo_a],
+                        &ws.w_lanes[offset_b + lo - lo_b..offset_b + hi - lo_b],
+                    )
+                } else {
+                    (&[], &[])
+                };
                 let mut block = [[0.0; GROUP]; GROUP];
                 for (x, y) in ua.iter().zip(ub) {
                     for (row, &xi) in block.iter_mut().zip(x) {
@@ -572,20 +576,28 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     }
     // (A + R) times each unit's column over the rows (m per unit), then K[u][v] as the unit
     // u's equation applied to it.
-    ws.gc.clear();
+    // (Both are written in full below: no clearing first.)
     ws.gc.resize(s * m, 0.0);
     for v in 0..s {
         let out = &mut ws.gc[v * m..(v + 1) * m];
         // Zero coefficients may name rows outside `rows` (a tangent with μ = 0).
-        for (c, b) in ws.units[v].column().into_iter().filter(|(_, b)| *b != 0.0) {
-            // Gram is symmetric: its row c is its column c.
-            let lc = ws.local[c];
-            for (o, g) in out.iter_mut().zip(&ws.gram[lc * m..(lc + 1) * m]) {
+        let mut terms = ws.units[v].column().into_iter().filter(|(_, b)| *b != 0.0);
+        // Gram is symmetric: its row c is its column c.
+        let gram_row = |c: usize| &ws.gram[ws.local[c] * m..(ws.local[c] + 1) * m];
+        match terms.next() {
+            Some((c, b)) => {
+                for (o, g) in out.iter_mut().zip(gram_row(c)) {
+                    *o = b * g;
+                }
+            }
+            None => out.fill(0.0),
+        }
+        for (c, b) in terms {
+            for (o, g) in out.iter_mut().zip(gram_row(c)) {
                 *o += b * g;
             }
         }
     }
-    ws.k.clear();
     ws.k.resize(s * s, 0.0);
     ws.rhs.clear();
     let mut largest: f64 = 0.0;
