@@ -319,15 +319,16 @@ impl ProblemBuilder {
                     // Zeros off the chain, the chain's entries scattered to their columns.
                     sp.w_values.resize(start + width, 0.0);
                     let path = factor.chain(tail);
-                    let mut lo = None;
-                    for (&dof, u) in path.iter().chain([&tail]).zip(&lanes[offset..]) {
-                        let k = dof - first_dof;
-                        sp.w_values[start + k] = u[r];
-                        if lo.is_none() && u[r] != 0.0 {
-                            lo = Some(k);
-                        }
+                    let (u, u_tail) = lanes[offset..=offset + path.len()].split_at(path.len());
+                    let w = &mut sp.w_values[start..start + width];
+                    for (&dof, x) in path.iter().zip(u) {
+                        w[dof - first_dof] = x[r];
                     }
-                    lo
+                    w[tail - first_dof] = u_tail[0][r];
+                    // The chain's columns increase (ancestors first): its first non-zero is
+                    // the segment's first.
+                    let first = u.iter().chain(u_tail).position(|x| x[r] != 0.0);
+                    first.map(|p| path.get(p).copied().unwrap_or(tail) - first_dof)
                 } else {
                     sp.w_values.extend(lanes[offset..offset + width].iter().map(|u| u[r]));
                     sp.w_values[start..=start + last].iter().position(|x| *x != 0.0)
