@@ -219,4 +219,36 @@ mod tests {
             assert!((&x - &expected).abs().max() < 1e-10 * expected.abs().max());
         }
     }
+
+    /// The world's path (CRBA straight into the packed rows, factored in place) against the
+    /// public one (dense M, gathered): the same rows bit for bit, the same factor, and a tree
+    /// entry of M is where the packed row puts it.
+    #[test]
+    fn packed_crba_gives_the_rows_of_the_dense_mass_matrix() {
+        use crate::algorithms::{compute_joint_jacobians, crba_packed_at_kinematics};
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
+        let model = load_file(path, &UrdfOptions::floating()).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(4);
+        for _ in 0..3 {
+            let q = model.random_configuration(&mut rng);
+            let mut dense = Data::new(&model);
+            crba(&model, &mut dense, &q).unwrap();
+            pack_mass_matrix(&model, &mut dense);
+            let mut packed = Data::new(&model);
+            compute_joint_jacobians(&model, &mut packed, &q).unwrap();
+            crba_packed_at_kinematics(&model, &mut packed);
+            assert_eq!(packed.factor_packed, dense.factor_packed);
+            // Dof k's row: its ancestors root first, then the diagonal.
+            let k = model.nv() - 1;
+            let (start, depth) =
+                (model.dof_path_start[k] + k, model.dof_path_start[k + 1] - model.dof_path_start[k]);
+            let root = model.dof_path[model.dof_path_start[k]];
+            assert_eq!(packed.factor_packed[start], dense.mass_matrix[(k, root)]);
+            assert_eq!(packed.factor_packed[start + depth], dense.mass_matrix[(k, k)]);
+            factor_packed_mass_matrix(&model, &mut packed).unwrap();
+            factor_packed_mass_matrix(&model, &mut dense).unwrap();
+            assert_eq!(packed.factor_packed, dense.factor_packed);
+            assert_eq!(packed.factor_inv_sqrt_d, dense.factor_inv_sqrt_d);
+        }
+    }
 }
