@@ -437,10 +437,10 @@ const GROUP: usize = 4;
 /// [`GROUP`] consecutive rows with the same column range (a contact's normal and tangent rows
 /// act on the same bodies), each group copied as lanes (`w_lanes[col]` holds its rows' entries
 /// in that column), and each block of the Gram between two groups one pass over the overlap of
-/// their ranges with a 4 × 4 outer-product update per column — the column's entries are loaded
-/// once for up to sixteen products, where one dot product per pair of rows loaded them once per
-/// pair (a humanoid episode's subspace steps formed 666 short dots per step). Else (A formed,
-/// or a world too wide for the copy) entry by entry.
+/// their ranges per row of the first group, each column adding that row's entry times the other
+/// group's four — up to sixteen products per column pair of lanes, where one dot product per
+/// pair of rows loaded them once per pair (a humanoid episode's subspace steps formed 666 short
+/// dots per step). Else (A formed, or a world too wide for the copy) entry by entry.
 fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     let m = ws.rows.len();
     // Every entry is written below (a block of two groups that share no column as zeros): no
@@ -495,9 +495,13 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
                 } else {
                     (&[], &[])
                 };
+                // One pass over the overlap per row of group a (a contact's group has three):
+                // each pass keeps its four sums in one vector register, where the 4 × 4 block
+                // updated per column made the compiler shuffle x and y into 8-wide vectors.
                 let mut block = [[0.0; GROUP]; GROUP];
-                for (x, y) in ua.iter().zip(ub) {
-                    for (row, &xi) in block.iter_mut().zip(x) {
+                for (i, row) in block.iter_mut().enumerate().take(count_a) {
+                    for (x, y) in ua.iter().zip(ub) {
+                        let xi = x[i];
                         for (acc, &yj) in row.iter_mut().zip(y) {
                             *acc += xi * yj;
                         }
