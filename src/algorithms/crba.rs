@@ -30,18 +30,10 @@ pub fn crba<'d>(
 /// poses and world Jacobian columns in `data` are current; the world's step computes them in its
 /// kinematics phase): M into `data.mass_matrix`.
 fn crba_at_kinematics<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
-    let mass_matrix = &mut data.mass_matrix;
-    composite_rigid_body_entries(
-        model,
-        &mut data.j_crba,
-        &mut data.ycrb,
-        &data.x_wb,
-        &data.s,
-        |k, _, m, value| {
-            mass_matrix[(m, k)] = value;
-            mass_matrix[(k, m)] = value;
-        },
-    );
+    composite_rigid_body_entries(model, data, |data, k, _, m, value| {
+        data.mass_matrix[(m, k)] = value;
+        data.mass_matrix[(k, m)] = value;
+    });
     &data.mass_matrix
 }
 
@@ -52,57 +44,49 @@ fn crba_at_kinematics<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64>
 /// ([`super::factor_packed_mass_matrix`]): neither the dense matrix's two triangles
 /// nor the factorization's gather of them are needed.
 pub(crate) fn crba_packed_at_kinematics(model: &Model, data: &mut Data) {
-    let (path_start, packed) = (&model.dof_path_start, &mut data.factor_packed);
-    composite_rigid_body_entries(
-        model,
-        &mut data.j_crba,
-        &mut data.ycrb,
-        &data.x_wb,
-        &data.s,
-        |k, up, _, value| {
-            // The walk from k to the root visits k's packed row from its diagonal backwards.
-            packed[path_start[k + 1] + k - up] = value;
-        },
-    );
+    let path_start = &model.dof_path_start;
+    composite_rigid_body_entries(model, data, |data, k, up, _, value| {
+        // The walk from k to the root visits k's packed row from its diagonal backwards.
+        data.factor_packed[path_start[k + 1] + k - up] = value;
+    });
 }
 
 /// RBDA §6.2's two passes: world-axes inertias and joint columns (about the first body's
-/// origin), then composites from the leaves in, with `store(k, up, m, M_mk)` called for each
-/// dof k and each of k's ancestors-or-self m, `up` steps up the path from k (0 for m = k).
+/// origin, into `data.j_crba` and `data.ycrb`), then composites from the leaves in, with
+/// `store(data, k, up, m, M_mk)` called for each dof k and each of k's ancestors-or-self m, `up`
+/// steps up the path from k (0 for m = k).
 fn composite_rigid_body_entries(
     model: &Model,
-    j_crba: &mut [crate::math::Motion],
-    ycrb: &mut [crate::math::SpatialInertia],
-    x_wb: &[Transform],
-    s: &[crate::math::Motion],
-    mut store: impl FnMut(usize, usize, usize, f64),
+    data: &mut Data,
+    mut store: impl FnMut(&mut Data, usize, usize, usize, f64),
 ) {
     let mut to_reference = Transform::identity();
     for i in 1..model.nbodies() {
         let (iv, nv) = (model.idx_v[i], model.joints[i].nv());
         if i == 1 {
-            to_reference = Transform::from_translation(-x_wb[1].translation);
+            to_reference = Transform::from_translation(-data.x_wb[1].translation);
         }
-        let x_rb = to_reference * x_wb[i];
+        let x_rb = to_reference * data.x_wb[i];
         for k in iv..iv + nv {
-            j_crba[k] = x_rb.act_motion(&s[k]);
+            data.j_crba[k] = x_rb.act_motion(&data.s[k]);
         }
-        ycrb[i] = model.inertias[i].transformed(&x_rb);
+        data.ycrb[i] = model.inertias[i].transformed(&x_rb);
     }
     for i in (1..model.nbodies()).rev() {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        let composite = ycrb[i];
+        let composite = data.ycrb[i];
         for k in iv..iv + nv {
-            let f_reference = composite.mul_motion(&j_crba[k]);
+            let f_reference = composite.mul_motion(&data.j_crba[k]);
             let (mut m, mut up) = (k, 0);
             while m != NO_DOF {
-                store(k, up, m, j_crba[m].dot(&f_reference));
+                let value = data.j_crba[m].dot(&f_reference);
+                store(data, k, up, m, value);
                 m = model.dof_parent[m];
                 up += 1;
             }
         }
         if p != 0 {
-            ycrb[p] += composite;
+            data.ycrb[p] += composite;
         }
     }
 }
