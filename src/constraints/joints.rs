@@ -95,9 +95,10 @@ pub fn add_joint_limit_rows_speculative(
         for k in 0..joint.nv() {
             let (qi, vi) = (model.idx_q(i) + k, model.idx_v(i) + k);
             let (lo, hi) = (model.lower_position_limit()[qi], model.upper_position_limit()[qi]);
-            for (distance, sign, origin) in
-                [(q[qi] - lo, 1.0, RowOrigin::LowerLimit(vi)), (hi - q[qi], -1.0, RowOrigin::UpperLimit(vi))]
-            {
+            for (distance, sign, origin) in [
+                (q[qi] - lo, 1.0, RowOrigin::LowerLimit(col + vi)),
+                (hi - q[qi], -1.0, RowOrigin::UpperLimit(col + vi)),
+            ] {
                 if !distance.is_finite() || distance > p.margin {
                     continue;
                 }
@@ -130,9 +131,9 @@ fn add_ball_limit_rows(
     let omega = |v: &DVector<f64>| Vec3::new(v[iv], v[iv + 1], v[iv + 2]);
     let (omega, omega_free) = (omega(v), omega(v_free));
     let rows = [
-        (distances[0], -st.swing_rate, RowOrigin::SwingLimit(iv)),
-        (distances[1], st.twist_rate, RowOrigin::TwistLowerLimit(iv)),
-        (distances[2], -st.twist_rate, RowOrigin::TwistUpperLimit(iv)),
+        (distances[0], -st.swing_rate, RowOrigin::SwingLimit(col + iv)),
+        (distances[1], st.twist_rate, RowOrigin::TwistLowerLimit(col + iv)),
+        (distances[2], -st.twist_rate, RowOrigin::TwistUpperLimit(col + iv)),
     ];
     for (distance, direction, origin) in rows {
         // A zero direction (swing at exactly 0) cannot be at a stop of a cone wider than the margin.
@@ -176,7 +177,7 @@ pub fn add_motor_row(
         RowLaw::Bounded { lo: -bound, hi: bound },
         target_velocity,
         0.0,
-        RowOrigin::Motor(dof),
+        RowOrigin::Motor(col + dof),
     );
     row[col + dof] = 1.0;
 }
@@ -191,7 +192,7 @@ pub fn add_joint_friction_rows(builder: &mut ProblemBuilder, model: &Model, col:
                 RowLaw::Bounded { lo: -bound, hi: bound },
                 0.0,
                 0.0,
-                RowOrigin::JointFriction(k),
+                RowOrigin::JointFriction(col + k),
             );
             row[col + k] = 1.0;
         }

@@ -85,24 +85,27 @@ impl ContactBlock {
     }
 }
 
-/// What created a row, for diagnostics.
+/// What created a row, for diagnostics and for matching rows across steps (warm starts). A dof
+/// is named by its column in the problem's velocities: its index in its multibody's v plus the
+/// multibody's column offset (the same in a one-multibody problem), so that two multibodies'
+/// rows never share an origin.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RowOrigin {
     /// Normal or friction row of a contact (index into the collision contacts).
     Contact(usize),
-    /// Lower position limit of a dof.
+    /// Lower position limit of the dof of this column.
     LowerLimit(usize),
-    /// Upper position limit of a dof.
+    /// Upper position limit of the dof of this column.
     UpperLimit(usize),
-    /// Swing-cone limit of the ball joint whose first dof is this.
+    /// Swing-cone limit of the ball joint whose first dof has this column.
     SwingLimit(usize),
-    /// Lower twist limit of the ball joint whose first dof is this.
+    /// Lower twist limit of the ball joint whose first dof has this column.
     TwistLowerLimit(usize),
-    /// Upper twist limit of the ball joint whose first dof is this.
+    /// Upper twist limit of the ball joint whose first dof has this column.
     TwistUpperLimit(usize),
-    /// Velocity motor of a dof.
+    /// Velocity motor of the dof of this column.
     Motor(usize),
-    /// Coulomb friction of a dof.
+    /// Coulomb friction of the dof of this column.
     JointFriction(usize),
     /// Loop-closure joint (index given by the caller).
     Loop(usize),
