@@ -173,6 +173,24 @@ fn check_pile(text: &str, count: usize, expect_sleep: bool) {
     println!("{count} ragdolls: all asleep at {asleep_at:?} s");
 }
 
+/// Warm starts match rows by origin: a limit of one ragdoll must never carry another's name.
+#[test]
+fn the_limit_rows_of_two_ragdolls_never_share_an_origin() {
+    let mut s = scene::load_str(&pile_text(2), models()).unwrap();
+    let mut limit_rows = 0;
+    for _ in 0..600 {
+        s.world.step().unwrap();
+        let mut seen = std::collections::HashSet::new();
+        for origin in &s.world.problem().origins {
+            if !matches!(origin, RowOrigin::Contact(_)) {
+                limit_rows += 1;
+                assert!(seen.insert(*origin), "{origin:?} twice");
+            }
+        }
+    }
+    assert!(limit_rows > 1000, "{limit_rows} limit rows: the test needs them");
+}
+
 #[test]
 fn a_pile_of_four_ragdolls_stays_finite_and_above_ground() {
     check_pile(&pile_text(4), 4, false);

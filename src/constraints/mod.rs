@@ -89,7 +89,7 @@ impl ContactBlock {
 /// is named by its column in the problem's velocities: its index in its multibody's v plus the
 /// multibody's column offset (the same in a one-multibody problem), so that two multibodies'
 /// rows never share an origin.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum RowOrigin {
     /// Normal or friction row of a contact (index into the collision contacts).
     Contact(usize),

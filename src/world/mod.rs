@@ -156,6 +156,9 @@ pub struct World {
     warm_contacts: Vec<WarmContact>,
     /// Per entry of `warm_contacts`: matched by a contact of this step.
     warm_taken: Vec<bool>,
+    /// This step's rows that matched a key (their positions in `warm_keys`) and that did not.
+    warm_matched: Vec<usize>,
+    warm_missed: Vec<usize>,
     contacts: Vec<Contact>,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
@@ -196,6 +199,8 @@ impl World {
             warm_index: HashMap::default(),
             warm_contacts: Vec::new(),
             warm_taken: Vec::new(),
+            warm_matched: Vec::new(),
+            warm_missed: Vec::new(),
             row_keys: Vec::new(),
             contacts: Vec::new(),
             v_all: DVector::zeros(0),
@@ -958,9 +963,8 @@ impl World {
         keys.clear();
         keys.extend((0..n).map(|i| self.row_key(i, &mut counter)));
         let (mut cursor, mut indexed) = (0, false);
-        self.warm_taken.clear();
-        self.warm_taken.resize(self.warm_contacts.len(), false);
-        let mut missed = false;
+        self.warm_matched.clear();
+        self.warm_missed.clear();
         for (i, key) in keys.iter().enumerate() {
             let found = if self.warm_keys.get(cursor) == Some(key) {
                 Some(cursor)
@@ -976,24 +980,16 @@ impl World {
                 Some(p) => {
                     self.lambda[i] = self.warm_values[p];
                     cursor = p + 1;
-                    // A contact matched by its key is no one else's (its first row only).
-                    let origin = self.problem.origins[i];
-                    if matches!(origin, RowOrigin::Contact(_))
-                        && (i == 0 || self.problem.origins[i - 1] != origin)
-                    {
-                        if let Ok(e) = self.warm_contacts.binary_search_by_key(&p, |c| c.first_row) {
-                            self.warm_taken[e] = true;
-                        }
-                    }
+                    self.warm_matched.push(p);
                 }
                 None => {
                     self.lambda[i] = 0.0;
-                    missed = true;
+                    self.warm_missed.push(i);
                 }
             }
         }
         self.row_keys = keys;
-        if missed {
+        if !self.warm_missed.is_empty() {
             self.match_moved_contacts();
         }
     }
@@ -1001,40 +997,49 @@ impl World {
     /// The second pass of [`World::warm_start`]: a contact none of whose rows matched a key
     /// takes the impulses of the nearest untaken contact of its pair with as many rows.
     fn match_moved_contacts(&mut self) {
-        let n = self.problem.rows();
-        let mut i = 0;
-        while i < n {
-            let origin = self.problem.origins[i];
-            let count = (i..n).take_while(|&r| self.problem.origins[r] == origin).count().max(1);
-            let unmatched = (i..i + count).all(|r| !self.warm_index.contains_key(&self.row_keys[r]));
-            if !unmatched || !matches!(origin, RowOrigin::Contact(_)) {
-                i += count;
+        // Last step's contacts that a key matched (by their first row) are taken.
+        self.warm_taken.clear();
+        self.warm_taken.resize(self.warm_contacts.len(), false);
+        for &p in &self.warm_matched {
+            if let Ok(e) = self.warm_contacts.binary_search_by_key(&p, |c| c.first_row) {
+                self.warm_taken[e] = true;
+            }
+        }
+        let origins = &self.problem.origins;
+        let mut m = 0;
+        while m < self.warm_missed.len() {
+            let i = self.warm_missed[m];
+            let origin = origins[i];
+            // The contact's rows, all of which must have missed (consecutive in `warm_missed`).
+            let count = origins[i..].iter().take_while(|o| **o == origin).count();
+            let whole = (i == 0 || origins[i - 1] != origin)
+                && self.warm_missed.get(m + count - 1) == Some(&(i + count - 1));
+            let RowOrigin::Contact(k) = origin else {
+                m += 1;
+                continue;
+            };
+            if !whole {
+                m += 1;
                 continue;
             }
-            let mut source = None;
-            if let RowOrigin::Contact(k) = origin {
-                let c = &self.contacts[k];
-                let mut best = WARM_MATCH_DISTANCE * WARM_MATCH_DISTANCE;
-                for (e, w) in self.warm_contacts.iter().enumerate() {
+            m += count;
+            let c = &self.contacts[k];
+            let mut best = (WARM_MATCH_DISTANCE * WARM_MATCH_DISTANCE, None);
+            for (e, w) in self.warm_contacts.iter().enumerate() {
+                if w.pair == (c.collider_a, c.collider_b) && w.rows == count && !self.warm_taken[e] {
                     let d2 = (w.point - c.point_a).norm_squared();
-                    if w.pair == (c.collider_a, c.collider_b)
-                        && w.rows == count
-                        && !self.warm_taken[e]
-                        && d2 <= best
-                    {
-                        best = d2;
-                        source = Some(e);
+                    if d2 <= best.0 {
+                        best = (d2, Some(e));
                     }
                 }
             }
-            if let Some(e) = source {
+            if let (_, Some(e)) = best {
                 self.warm_taken[e] = true;
                 let first = self.warm_contacts[e].first_row;
                 for r in 0..count {
                     self.lambda[i + r] = self.warm_values[first + r];
                 }
             }
-            i += count;
         }
     }
 
@@ -1189,5 +1194,52 @@ impl std::hash::BuildHasher for KeyHasher {
     type Hasher = KeyHasher;
     fn build_hasher(&self) -> KeyHasher {
         KeyHasher(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::RigidInertia;
+    use crate::report::stability::free_body;
+
+    /// A 0.2 m box resting on the ground for 100 steps: four contacts with impulses.
+    fn resting_box() -> World {
+        let mut w = World::new(WorldOptions::default());
+        w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+        let size = Vec3::repeat(0.2);
+        let model = free_body("box", Shape::Box { size }, RigidInertia::solid_box(2.0, size));
+        let i = w.add_multibody("box", model, &MeshOptions::default()).unwrap();
+        w.bodies[i].state.q[2] = 0.1;
+        w.set_sleep(SleepOptions { enabled: false, ..w.options.sleep });
+        for _ in 0..100 {
+            w.step().unwrap();
+        }
+        w
+    }
+
+    #[test]
+    fn a_contact_whose_feature_id_changed_keeps_its_impulses_and_one_that_moved_does_not() {
+        let mut w = resting_box();
+        let before = w.lambda.clone();
+        assert_eq!(w.contacts.len(), 4);
+        assert!(before.iter().filter(|x| **x > 0.0).count() >= 4, "{before}");
+        // The same contacts with other feature ids (parry's ids of a resting contact flip), and
+        // the last one moved by 1 cm: its impulses are not the old contact's.
+        for c in &mut w.contacts {
+            c.feature ^= 0xdead_beef;
+        }
+        w.contacts[3].point_a.x += 0.01;
+        w.warm_start();
+        let origins = w.problem.origins.clone();
+        let rows_of = |k: usize| {
+            (0..origins.len()).filter(|&r| origins[r] == RowOrigin::Contact(k)).collect::<Vec<_>>()
+        };
+        for k in 0..3 {
+            for r in rows_of(k) {
+                assert_eq!(w.lambda[r], before[r], "contact {k} row {r}");
+            }
+        }
+        assert!(rows_of(3).iter().all(|&r| w.lambda[r] == 0.0), "{}", w.lambda);
     }
 }
