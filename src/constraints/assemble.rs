@@ -461,6 +461,8 @@ impl ProblemBuilder {
         sp.run_start.clear();
         sp.run_start.push(0);
         sp.row_start.push(0);
+        // W changes: a solver's kept Wᵀλ of the last problem is void.
+        problem.kept_lambda.0.get_mut().clear();
         let mut lanes = std::mem::take(problem.lanes.0.get_mut());
         let sp = &mut problem.sparsity;
         let (mut i, mut next_contact) = (0, 0);

@@ -144,6 +144,10 @@ pub struct ConstraintProblem {
     pub(crate) scratch: Scratch,
     /// A contact's three Jacobian rows as lanes during assembly (reused).
     pub(crate) lanes: Scratch<[f64; 4]>,
+    /// Impulses λ a solver left with the Wᵀλ it kept for them ([`Self::keep_impulse_sum`]):
+    /// [`Self::apply_impulses`] with the same λ starts from that sum.
+    pub(crate) kept_lambda: Scratch,
+    pub(crate) kept_sum: Scratch,
     /// Which velocity blocks (multibodies or their root subtrees) each row touches, when the problem was assembled from
     /// blocks: lets iterative solvers work in velocity space with sparse rows. Empty otherwise.
     pub sparsity: RowSparsity,
@@ -224,6 +228,8 @@ impl Default for ConstraintProblem {
             origins: Vec::new(),
             sparsity: RowSparsity::default(),
             scratch: Scratch::default(),
+            kept_lambda: Scratch::default(),
+            kept_sum: Scratch::default(),
             lanes: Scratch::default(),
         }
     }
@@ -348,12 +354,17 @@ impl ConstraintProblem {
         }
         let sp = &self.sparsity;
         scratch.clear();
-        scratch.resize(sp.nv, 0.0);
-        for (i, &l) in lambda.iter().enumerate() {
-            if l != 0.0 {
-                for (col, w) in sp.row_spans(i) {
-                    for (s, w) in scratch[col..col + w.len()].iter_mut().zip(w) {
-                        *s += l * w;
+        let kept = self.kept_sum.0.borrow();
+        if kept.len() == sp.nv && *self.kept_lambda.0.borrow() == lambda.as_slice() {
+            scratch.extend_from_slice(&kept);
+        } else {
+            scratch.resize(sp.nv, 0.0);
+            for (i, &l) in lambda.iter().enumerate() {
+                if l != 0.0 {
+                    for (col, w) in sp.row_spans(i) {
+                        for (s, w) in scratch[col..col + w.len()].iter_mut().zip(w) {
+                            *s += l * w;
+                        }
                     }
                 }
             }
@@ -367,6 +378,16 @@ impl ConstraintProblem {
                 }
             }
         }
+    }
+
+    /// Records `sum` = Wᵀλ (nv entries) as kept by a solver for its impulses λ, so that
+    /// [`Self::apply_impulses`] of the same λ skips forming it.
+    pub(crate) fn keep_impulse_sum(&self, lambda: &[f64], sum: &[f64]) {
+        let (mut l, mut s) = (self.kept_lambda.0.borrow_mut(), self.kept_sum.0.borrow_mut());
+        l.clear();
+        l.extend_from_slice(lambda);
+        s.clear();
+        s.extend_from_slice(sum);
     }
 
     /// A problem given directly by its matrix and vectors (no Jacobian): for tests, imported
@@ -389,6 +410,8 @@ impl ConstraintProblem {
             origins: vec![RowOrigin::Other; laws.len()],
             sparsity: RowSparsity::default(),
             scratch: Scratch::default(),
+            kept_lambda: Scratch::default(),
+            kept_sum: Scratch::default(),
             lanes: Scratch::default(),
             laws,
             contacts,

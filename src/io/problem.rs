@@ -355,6 +355,8 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
         sparsity: Default::default(),
         scratch: Default::default(),
         lanes: Default::default(),
+        kept_lambda: Default::default(),
+        kept_sum: Default::default(),
         jacobian,
         minv_jt,
         delassus: matrix_from_rows(&file.delassus, n, n, "delassus")?,

@@ -423,6 +423,9 @@ impl ConstraintSolver for PgsSolver {
             velocities_at(lambda, &mut self.workspace.velocities);
             certified = Some(residuals_at_velocities(problem, lambda, &self.workspace.velocities));
         }
+        if sparse {
+            problem.keep_impulse_sum(lambda.as_slice(), dv.borrow().as_slice());
+        }
         self.workspace.settled_by_subspace = settled_by_subspace;
         self.workspace.previous = previous;
         self.workspace.gamma = gamma;
