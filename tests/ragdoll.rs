@@ -211,6 +211,19 @@ fn a_pile_of_twenty_ragdolls_stays_finite_above_ground_and_sleeps_within_ten_sec
     check_pile(&scene_text("ragdoll_pile.toml"), 20, true);
 }
 
+/// Two other drops of the same pile, so that the criteria are not one seed's luck (session 17,
+/// development build: seed 1 asleep at 6.79 s, 1.43 mm below the ground at most; seed 2 at
+/// 5.59 s, 1.39 mm — before session 17's warm-start fixes seed 2 never slept; seeds 1–6 all
+/// hold, see README "Ragdoll").
+#[test]
+fn the_pile_of_twenty_sleeps_within_ten_seconds_for_other_drops_too() {
+    let text = scene_text("ragdoll_pile.toml");
+    assert!(text.contains("seed = 3"));
+    for seed in [1, 2] {
+        check_pile(&text.replace("seed = 3", &format!("seed = {seed}")), 20, true);
+    }
+}
+
 #[test]
 fn a_powered_ragdoll_holds_its_pose_with_bounded_torque() {
     let passive = scene_text("ragdoll_fall.toml");
