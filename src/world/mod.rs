@@ -1010,18 +1010,14 @@ impl World {
         while m < self.warm_missed.len() {
             let i = self.warm_missed[m];
             let origin = origins[i];
-            // The contact's rows, all of which must have missed (consecutive in `warm_missed`).
+            // A contact's first row, and all its rows missed (consecutive in `warm_missed`).
             let count = origins[i..].iter().take_while(|o| **o == origin).count();
             let whole = (i == 0 || origins[i - 1] != origin)
                 && self.warm_missed.get(m + count - 1) == Some(&(i + count - 1));
-            let RowOrigin::Contact(k) = origin else {
+            let (RowOrigin::Contact(k), true) = (origin, whole) else {
                 m += 1;
                 continue;
             };
-            if !whole {
-                m += 1;
-                continue;
-            }
             m += count;
             let c = &self.contacts[k];
             let mut best = (WARM_MATCH_DISTANCE * WARM_MATCH_DISTANCE, None);
