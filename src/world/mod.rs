@@ -1011,7 +1011,7 @@ impl World {
             let i = self.warm_missed[m];
             let origin = origins[i];
             // A contact's first row, and all its rows missed (consecutive in `warm_missed`).
-            let count = origins[i..].iter().take_while(|o| **o == origin).count();
+            let count = origin_run(origins, i);
             let whole = (i == 0 || origins[i - 1] != origin)
                 && self.warm_missed.get(m + count - 1) == Some(&(i + count - 1));
             let (RowOrigin::Contact(k), true) = (origin, whole) else {
@@ -1048,7 +1048,7 @@ impl World {
         let (n, origins) = (self.problem.rows(), &self.problem.origins);
         let mut i = 0;
         while i < n {
-            let count = (i..n).take_while(|&r| origins[r] == origins[i]).count();
+            let count = origin_run(origins, i);
             if let RowOrigin::Contact(k) = origins[i] {
                 let c = &self.contacts[k];
                 self.warm_contacts.push(WarmContact {
@@ -1068,6 +1068,11 @@ impl World {
 /// Below the spacing of two contacts of one pair (a box's corners, a capsule's two ends), above
 /// what a resting contact moves.
 pub const WARM_MATCH_DISTANCE: f64 = 0.005;
+
+/// The number of rows from row `i` on that share its origin (a contact's rows are consecutive).
+fn origin_run(origins: &[RowOrigin], i: usize) -> usize {
+    origins[i..].iter().take_while(|o| **o == origins[i]).count()
+}
 
 /// A contact of the last step with rows, for [`World::warm_start`]'s second pass.
 #[derive(Clone, Copy, Debug)]
