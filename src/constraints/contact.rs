@@ -96,13 +96,13 @@ pub fn add_contact_rows(
         v,
         h,
         parameters,
-        |_| true,
+        |_, _| true,
     );
 }
 
 /// [`add_contact_rows`] with the systems given by a function: `system(m)` is the model, the data
-/// and the first velocity column of multibody `m`; and `keep(contact)` decides whether a
-/// contact gets rows at all, before its Jacobian rows are formed: the world leaves out
+/// and the first velocity column of multibody `m`; and `keep(i, contact)` decides whether
+/// contact `i` of the slice gets rows at all, before its Jacobian rows are formed: the world leaves out
 /// speculative contacts that cannot close within the step ([`Speculation`]), judged from its
 /// bodies' velocities in O(1) per contact (a resting ragdoll has 32 contacts in its margin and
 /// keeps 14).
@@ -115,11 +115,11 @@ pub fn add_contact_rows_with<'a>(
     v: &DVector<f64>,
     h: f64,
     mut parameters: impl FnMut(&Contact) -> ContactParameters,
-    mut keep: impl FnMut(&Contact) -> bool,
+    mut keep: impl FnMut(usize, &Contact) -> bool,
 ) {
     let mut rates = builder.take_point_rates();
     for (i, contact) in contacts.iter().enumerate() {
-        if !keep(contact) {
+        if !keep(i, contact) {
             continue;
         }
         let origin = RowOrigin::Contact(first_index + i);

@@ -160,6 +160,13 @@ pub struct World {
     warm_matched: Vec<usize>,
     warm_missed: Vec<usize>,
     contacts: Vec<Contact>,
+    /// This step's contacts that the speculation test left without rows.
+    speculation_dropped: Vec<usize>,
+    /// Per contact of this step: given rows after a solve whose velocities close it
+    /// ([`World::close_dropped_contacts`]).
+    speculation_forced: Vec<bool>,
+    /// Per multibody: its velocities after the solve are computed (`close_dropped_contacts`).
+    speculation_updated: Vec<bool>,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
     /// Diagonal blocks of the stacked mass matrix (first column, width): one per root subtree
@@ -203,6 +210,9 @@ impl World {
             warm_missed: Vec::new(),
             row_keys: Vec::new(),
             contacts: Vec::new(),
+            speculation_dropped: Vec::new(),
+            speculation_forced: Vec::new(),
+            speculation_updated: Vec::new(),
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
             blocks: Vec::new(),
@@ -591,25 +601,17 @@ impl World {
         lap(2, &mut clock);
         // 5. Constraint rows.
         self.builder.clear();
+        self.speculation_forced.clear();
+        self.speculation_forced.resize(self.contacts.len(), false);
+        self.speculation_dropped.clear();
         if has_rows && !smooth {
             self.add_rows(h);
         }
-        let rows = self.builder.len();
+        let mut rows = self.builder.len();
         // 6. Solve.
         let mut report = None;
         if rows > 0 {
-            let (bodies, owners) = (&self.bodies, &self.block_owner);
-            self.builder.build_into_blocks(
-                &self.v_free_all,
-                |block| {
-                    let (k, first_dof) = owners[block];
-                    let b = &bodies[k];
-                    let movable = !(b.asleep || b.kinematic || !b.factored);
-                    movable.then(|| (TreeFactor::new(&b.model, &b.data), first_dof))
-                },
-                false,
-                &mut self.problem,
-            );
+            self.build_problem();
             lap(3, &mut clock);
             self.warm_start();
             report = Some(self.chain.solve(&self.problem, &mut self.lambda)?);
@@ -620,22 +622,41 @@ impl World {
             self.lambda = DVector::zeros(0);
             lap(3, &mut clock);
         }
-        lap(4, &mut clock);
-        // 7. Velocity update and integration on the manifold; commit only if all is finite.
+        // 7. Velocity update (v_free_all becomes the velocity after the impulses).
         if rows > 0 {
-            let (bodies, owners) = (&self.bodies, &self.block_owner);
-            self.problem.apply_impulses(
-                &self.lambda,
-                &mut self.v_free_all,
-                &mut self.impulse_scratch,
-                |block| {
-                    let (k, first_dof) = owners[block];
-                    let b = &bodies[k];
-                    let movable = !(b.asleep || b.kinematic || !b.factored);
-                    movable.then(|| (TreeFactor::new(&b.model, &b.data), first_dof))
-                },
-            );
+            self.apply_problem_impulses();
         }
+        // A contact the speculation test left out may be closed by the impulses of the others
+        // (a resting hand flicked down by a body landing on its arm): then it gets rows and the
+        // problem is solved again, warm-started from this solve.
+        for _ in 0..SPECULATION_PASSES {
+            if !self.close_dropped_contacts(h) {
+                break;
+            }
+            for b in &self.bodies {
+                self.v_free_all.rows_mut(b.col, b.model.nv()).copy_from(&b.v_free);
+            }
+            self.builder.clear();
+            self.add_rows(h);
+            rows = self.builder.len();
+            self.build_problem();
+            self.warm_start();
+            let again = self.chain.solve(&self.problem, &mut self.lambda)?;
+            self.remember_impulses();
+            self.apply_problem_impulses();
+            report = Some(match report {
+                Some(mut first) => {
+                    first.fallbacks.extend(again.fallbacks);
+                    crate::solvers::ChainReport {
+                        iterations: first.iterations + again.iterations,
+                        fallbacks: first.fallbacks,
+                        ..again
+                    }
+                }
+                None => again,
+            });
+        }
+        lap(4, &mut clock);
         for i in 0..self.bodies.len() {
             let b = &mut self.bodies[i];
             let nv = b.model.nv();
@@ -838,6 +859,60 @@ impl World {
         }
     }
 
+    /// The constraint problem of the rows in `self.builder` (W over each multibody's factor).
+    fn build_problem(&mut self) {
+        let factor_of = block_factors(&self.bodies, &self.block_owner);
+        self.builder.build_into_blocks(&self.v_free_all, factor_of, false, &mut self.problem);
+    }
+
+    /// `v_free_all += M⁻¹ Jᵀ λ`: the velocity after the solved impulses.
+    fn apply_problem_impulses(&mut self) {
+        let factor_of = block_factors(&self.bodies, &self.block_owner);
+        self.problem.apply_impulses(&self.lambda, &mut self.v_free_all, &mut self.impulse_scratch, factor_of);
+    }
+
+    /// Marks in `speculation_forced` the contacts the speculation test left out that the
+    /// velocity after the solve (`v_free_all`) would have kept: their two points approach fast
+    /// enough to close the gap by the speculation's own measure. True if there is one.
+    fn close_dropped_contacts(&mut self, h: f64) -> bool {
+        if self.speculation_dropped.is_empty() {
+            return false;
+        }
+        // The bodies' velocities after the solve, once per multibody that has a dropped contact.
+        self.speculation_updated.clear();
+        self.speculation_updated.resize(self.bodies.len(), false);
+        for &k in &self.speculation_dropped {
+            let c = &self.contacts[k];
+            for side in [c.body_a, c.body_b] {
+                if let Attachment::Body { multibody, .. } = side {
+                    if !self.speculation_updated[multibody] {
+                        self.speculation_updated[multibody] = true;
+                        let b = &mut self.bodies[multibody];
+                        let v = &self.v_free_all.as_slice()[b.col..b.col + b.model.nv()];
+                        b.update_solved_world_velocities(v);
+                    }
+                }
+            }
+        }
+        let mut found = false;
+        for &k in &self.speculation_dropped {
+            let c = &self.contacts[k];
+            let velocity = |side: Attachment, p: &Vec3| match side {
+                Attachment::Body { multibody, body } => {
+                    let at = &self.bodies[multibody].solved_world_velocities[body];
+                    at.linear + at.angular.cross(p)
+                }
+                Attachment::World => Vec3::zeros(),
+            };
+            let separating = c.normal.dot(&(velocity(c.body_a, &c.point_a) - velocity(c.body_b, &c.point_b)));
+            if self.options.speculation.keeps(c.distance, (-separating).max(0.0), h) {
+                self.speculation_forced[k] = true;
+                found = true;
+            }
+        }
+        found
+    }
+
     fn add_rows(&mut self, h: f64) {
         let mut builder = std::mem::replace(&mut self.builder, ProblemBuilder::new(0, self.options.friction));
         if self.options.speculation.speed_factor.is_finite() {
@@ -848,6 +923,9 @@ impl World {
         let bodies = &self.bodies;
         let contacts = std::mem::take(&mut self.contacts);
         let (v, speculation) = (&self.v_all, self.options.speculation);
+        let forced = &self.speculation_forced;
+        let mut dropped = std::mem::take(&mut self.speculation_dropped);
+        dropped.clear();
         add_contact_rows_with(
             &mut builder,
             |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
@@ -856,8 +934,8 @@ impl World {
             v,
             h,
             |c| self.parameters_of(c),
-            |c| {
-                if speculation.keeps(c.distance, 0.0, h) {
+            |i, c| {
+                if forced[i] || speculation.keeps(c.distance, 0.0, h) {
                     return true;
                 }
                 // The closing speed of the contact's two points under v and under v_free.
@@ -870,10 +948,15 @@ impl World {
                 };
                 let (a, a_free) = point_velocities(c.body_a, &c.point_a);
                 let (b, b_free) = point_velocities(c.body_b, &c.point_b);
-                speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h)
+                let keep = speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h);
+                if !keep {
+                    dropped.push(i);
+                }
+                keep
             },
         );
         self.contacts = contacts;
+        self.speculation_dropped = dropped;
         for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {
             add_joint_limit_rows_speculative(
                 &mut builder,
@@ -1068,6 +1151,24 @@ impl World {
 /// Below the spacing of two contacts of one pair (a box's corners, a capsule's two ends), above
 /// what a resting contact moves.
 pub const WARM_MATCH_DISTANCE: f64 = 0.005;
+
+/// Per block of the stacked mass matrix, the factor of its multibody and the block's first dof
+/// in it; none for a block that cannot move (asleep, kinematic or unfactored).
+fn block_factors<'a>(
+    bodies: &'a [Multibody],
+    owners: &'a [(usize, usize)],
+) -> impl Fn(usize) -> Option<(TreeFactor<'a>, usize)> + 'a {
+    move |block| {
+        let (k, first_dof) = owners[block];
+        let b = &bodies[k];
+        let movable = !(b.asleep || b.kinematic || !b.factored);
+        movable.then(|| (TreeFactor::new(&b.model, &b.data), first_dof))
+    }
+}
+
+/// Solves per step after the first for contacts that the speculation test left out and the
+/// solved velocity closes ([`World::close_dropped_contacts`]): each pass adds those it finds.
+const SPECULATION_PASSES: usize = 2;
 
 /// The number of rows from row `i` on that share its origin (a contact's rows are consecutive).
 fn origin_run(origins: &[RowOrigin], i: usize) -> usize {

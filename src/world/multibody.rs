@@ -119,6 +119,9 @@ pub struct Multibody {
     /// Per body, its spatial velocity in world axes about the world origin under `state.v` and
     /// under `v_free` ([`Multibody::update_world_velocities`]).
     pub(crate) world_velocities: Vec<(Motion, Motion)>,
+    /// The same under the velocity after the step's solve
+    /// ([`Multibody::update_solved_world_velocities`]).
+    pub(crate) solved_world_velocities: Vec<Motion>,
 }
 
 impl Multibody {
@@ -152,6 +155,7 @@ impl Multibody {
             factored: false,
             constant_mass_factored: false,
             world_velocities: vec![(Motion::zero(), Motion::zero()); nb],
+            solved_world_velocities: vec![Motion::zero(); nb],
             model,
         }
     }
@@ -174,6 +178,22 @@ impl Multibody {
                 at_free.angular += column.angular * v_free;
             }
             self.world_velocities[i] = (at_v, at_free);
+        }
+    }
+
+    /// Fills `solved_world_velocities` as [`Multibody::update_world_velocities`] does, under the
+    /// velocity `v` after a solve (this multibody's nv entries): for the contacts the world
+    /// checks after the solve ([`super::World::step`]).
+    pub(crate) fn update_solved_world_velocities(&mut self, v: &[f64]) {
+        let (model, data) = (&self.model, &self.data);
+        for i in 1..model.nbodies() {
+            let mut at = self.solved_world_velocities[model.parent(i)];
+            let dofs = model.idx_v(i)..model.idx_v(i) + model.joint(i).nv();
+            for (column, vk) in data.j_world[dofs.clone()].iter().zip(&v[dofs]) {
+                at.linear += column.linear * *vk;
+                at.angular += column.angular * *vk;
+            }
+            self.solved_world_velocities[i] = at;
         }
     }
 
