@@ -182,6 +182,30 @@ fn a_contact_left_out_by_the_speculation_gets_rows_when_the_solve_closes_it() {
     }
 }
 
+/// The same for a joint-limit stop: a pendulum hanging still 15 mrad above its lower stop (inside
+/// the 20 mrad margin, beyond the 10 mrad `speculative_within`) has no limit row, until its
+/// hinge motor swings it toward the stop at 10 rad/s (20 mrad per step): the check after the
+/// solve gives the stop its row, and the pendulum ends the step on it instead of 5 mrad past.
+#[test]
+fn a_limit_left_out_by_the_speculation_gets_its_row_when_the_solve_closes_it() {
+    let lower = -0.015;
+    let mut options = exact_options();
+    options.dt = 2e-3;
+    options.sleep.enabled = false;
+    let mut w = World::new(options);
+    let p = w.add_multibody("pendulum", pendulum(lower), &MeshOptions::default()).unwrap();
+    w.multibody_mut(p).set_motor(0, Some(Motor { target_velocity: -10.0, max_force: 5000.0 }));
+    let stats = w.step().unwrap().clone();
+    assert_eq!(stats.rows, 2, "the motor's row and the stop's");
+    let q = w.multibody(p).state.q[0];
+    assert!(q >= lower - 1e-9, "ends the step on the stop: q = {q}");
+    for _ in 0..50 {
+        w.step().unwrap();
+        let q = w.multibody(p).state.q[0];
+        assert!(q >= lower - 1e-6, "stays on the stop: q = {q}");
+    }
+}
+
 /// A 0.2 m, 1 kg box resting on the ground with μ = 0.5 at dt = 1 ms, pushed at 2 m/s along
 /// `direction` (unit, horizontal): its displacement (x, y) after 3 s and the fallbacks on the way.
 fn slide_box(mut options: WorldOptions, direction: [f64; 2]) -> ((f64, f64), usize) {

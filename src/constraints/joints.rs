@@ -60,14 +60,65 @@ pub fn add_joint_limit_rows(
     h: f64,
     p: &JointLimitParameters,
 ) {
-    add_joint_limit_rows_speculative(builder, model, q, (v, v), col, h, p, Speculation::ALL);
+    let velocities = LimitVelocities { start: v, free: v, solved: None };
+    add_joint_limit_rows_speculative(
+        builder,
+        model,
+        q,
+        velocities,
+        col,
+        h,
+        p,
+        Speculation::ALL,
+        &mut Vec::new(),
+    );
+}
+
+/// The velocities a speculative limit is judged by (each the model's nv entries): `start`, the
+/// state's (which also sets the rows' approach speeds and targets); `free`, with the step's
+/// gravity and forces in it; and, once the step has been solved, `solved`, the velocity after
+/// its impulses (the world's check after the solve).
+#[derive(Clone, Copy, Debug)]
+pub struct LimitVelocities<'a> {
+    /// Velocity at the start of the step.
+    pub start: &'a DVector<f64>,
+    /// Free velocity of the step.
+    pub free: &'a DVector<f64>,
+    /// Velocity after a solve of the step, if there was one.
+    pub solved: Option<&'a DVector<f64>>,
+}
+
+/// A stop within the limit margin that the speculation left without a row
+/// ([`add_joint_limit_rows_speculative`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DroppedLimit {
+    /// Distance to the stop (rad or m, > 0).
+    pub distance: f64,
+    /// Column of the joint's first velocity coordinate in the problem.
+    pub column: usize,
+    /// The row it would have had over the joint's velocity coordinates from `column` on (1
+    /// entry for a scalar coordinate, 3 for a ball joint's swing or twist): a positive rate
+    /// moves away from the stop.
+    pub direction: [f64; 3],
+    /// Entries of `direction` in use (1 or 3).
+    pub dofs: usize,
+}
+
+impl DroppedLimit {
+    /// Speed (rad/s or m/s) at which the coordinate approaches its stop under `v`, the
+    /// velocity of the whole problem (its columns).
+    pub fn closing_speed(&self, v: &[f64]) -> f64 {
+        let rate: f64 = (0..self.dofs).map(|k| self.direction[k] * v[self.column + k]).sum();
+        -rate
+    }
 }
 
 /// [`add_joint_limit_rows`] with limits treated like speculative contacts: a stop within
 /// `p.margin` gets a row only if `speculation` keeps it ([`Speculation::keeps`], the distance in
-/// rad or m) at the larger of the coordinate's rates under `v` (start of the step) and `v_free`
-/// (the free velocity, with the step's gravity and forces in it). A limb resting 0.05 rad from
-/// its stop adds no row whose impulse could only be zero. The world passes its contact
+/// rad or m) at the largest of the coordinate's rates under `velocities.start` and
+/// `velocities.free` and its closing speed under `velocities.solved`. A limb resting 0.05 rad
+/// from its stop adds no row whose impulse could only be zero. The stops left without a row are
+/// appended to `dropped` (the world checks them against the solved velocity). The world passes its contact
 /// speculation with `always_within` = `p.speculative_within`: a floor of 0.01 rad, not the
 /// contacts' 2 mm, because with 2 or 5 mrad the 20-ragdoll pile never fell asleep (stops
 /// resting a few mrad off flickered in and out of the problem).
@@ -76,17 +127,19 @@ pub fn add_joint_limit_rows_speculative(
     builder: &mut ProblemBuilder,
     model: &Model,
     q: &DVector<f64>,
-    (v, v_free): (&DVector<f64>, &DVector<f64>),
+    velocities: LimitVelocities,
     col: usize,
     h: f64,
     p: &JointLimitParameters,
     speculation: Speculation,
+    dropped: &mut Vec<DroppedLimit>,
 ) {
+    let (v, v_free) = (velocities.start, velocities.free);
     for i in 1..model.nbodies() {
         let joint = model.joint(i);
         if let Some(limits) = model.ball_limits(i) {
             let (iq, iv) = (model.idx_q(i), model.idx_v(i));
-            add_ball_limit_rows(builder, limits, q, (v, v_free), iq, iv, col, h, p, speculation);
+            add_ball_limit_rows(builder, limits, q, velocities, iq, iv, col, h, p, speculation, dropped);
             continue;
         }
         if !has_scalar_coordinates(joint) {
@@ -102,7 +155,14 @@ pub fn add_joint_limit_rows_speculative(
                 if !distance.is_finite() || distance > p.margin {
                     continue;
                 }
-                if !speculation.keeps(distance, v[vi].abs().max(v_free[vi].abs()), h) {
+                let closing = velocities.solved.map_or(0.0, |solved| -sign * solved[vi]);
+                if !speculation.keeps(distance, v[vi].abs().max(v_free[vi].abs()).max(closing), h) {
+                    dropped.push(DroppedLimit {
+                        distance,
+                        column: col + vi,
+                        direction: [sign, 0.0, 0.0],
+                        dofs: 1,
+                    });
                     continue;
                 }
                 let approach = sign * v[vi];
@@ -119,17 +179,19 @@ fn add_ball_limit_rows(
     builder: &mut ProblemBuilder,
     limits: &BallLimits,
     q: &DVector<f64>,
-    (v, v_free): (&DVector<f64>, &DVector<f64>),
+    velocities: LimitVelocities,
     iq: usize,
     iv: usize,
     col: usize,
     h: f64,
     p: &JointLimitParameters,
     speculation: Speculation,
+    dropped: &mut Vec<DroppedLimit>,
 ) {
     let (distances, st) = limits.distances(&q.as_slice()[iq..iq + 4]);
-    let omega = |v: &DVector<f64>| Vec3::new(v[iv], v[iv + 1], v[iv + 2]);
-    let (omega, omega_free) = (omega(v), omega(v_free));
+    let omega_of = |v: &DVector<f64>| Vec3::new(v[iv], v[iv + 1], v[iv + 2]);
+    let (omega, omega_free) = (omega_of(velocities.start), omega_of(velocities.free));
+    let omega_solved = velocities.solved.map(omega_of);
     let rows = [
         (distances[0], -st.swing_rate, RowOrigin::SwingLimit(col + iv)),
         (distances[1], st.twist_rate, RowOrigin::TwistLowerLimit(col + iv)),
@@ -141,7 +203,11 @@ fn add_ball_limit_rows(
             continue;
         }
         let approach = direction.dot(&omega);
-        if !speculation.keeps(distance, approach.abs().max(direction.dot(&omega_free).abs()), h) {
+        let closing = omega_solved.map_or(0.0, |w| -direction.dot(&w));
+        if !speculation.keeps(distance, approach.abs().max(direction.dot(&omega_free).abs()).max(closing), h)
+        {
+            let direction = [direction[0], direction[1], direction[2]];
+            dropped.push(DroppedLimit { distance, column: col + iv, direction, dofs: 3 });
             continue;
         }
         let target = limit_target(distance, approach, h, p);

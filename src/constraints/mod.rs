@@ -23,7 +23,7 @@ pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,
-    JointLimitParameters,
+    DroppedLimit, JointLimitParameters, LimitVelocities,
 };
 pub use loops::{
     add_loop_closure_rows, add_loop_closure_rows_between, loop_closure_drift_between, loop_error,

@@ -26,8 +26,8 @@ pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows_speculative,
-    add_loop_closure_rows_between, add_motor_row, ConstraintProblem, ContactParameters, FrictionModel,
-    LoopClosure, ProblemBuilder, RowOrigin, Speculation, TreeFactor,
+    add_loop_closure_rows_between, add_motor_row, ConstraintProblem, ContactParameters, DroppedLimit,
+    FrictionModel, LimitVelocities, LoopClosure, ProblemBuilder, RowOrigin, Speculation, TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -167,6 +167,11 @@ pub struct World {
     speculation_forced: Vec<bool>,
     /// Per multibody: its velocities after the solve are computed (`close_dropped_contacts`).
     speculation_updated: Vec<bool>,
+    /// This step's joint-limit stops that the speculation left without a row.
+    limits_dropped: Vec<DroppedLimit>,
+    /// The rows are being added again after a solve: limits are judged by `Multibody::v_solved`
+    /// too.
+    solved_pass: bool,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
     /// Diagonal blocks of the stacked mass matrix (first column, width): one per root subtree
@@ -213,6 +218,8 @@ impl World {
             speculation_dropped: Vec::new(),
             speculation_forced: Vec::new(),
             speculation_updated: Vec::new(),
+            limits_dropped: Vec::new(),
+            solved_pass: false,
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
             blocks: Vec::new(),
@@ -604,6 +611,8 @@ impl World {
         self.speculation_forced.clear();
         self.speculation_forced.resize(self.contacts.len(), false);
         self.speculation_dropped.clear();
+        self.limits_dropped.clear();
+        self.solved_pass = false;
         if has_rows && !smooth {
             self.add_rows(h);
         }
@@ -633,10 +642,13 @@ impl World {
             if !self.close_dropped_contacts(h) {
                 break;
             }
-            for b in &self.bodies {
-                self.v_free_all.rows_mut(b.col, b.model.nv()).copy_from(&b.v_free);
+            for b in &mut self.bodies {
+                let nv = b.model.nv();
+                b.v_solved.copy_from(&self.v_free_all.rows(b.col, nv));
+                self.v_free_all.rows_mut(b.col, nv).copy_from(&b.v_free);
             }
             self.builder.clear();
+            self.solved_pass = true;
             self.add_rows(h);
             rows = self.builder.len();
             self.build_problem();
@@ -873,10 +885,19 @@ impl World {
 
     /// Marks in `speculation_forced` the contacts the speculation test left out that the
     /// velocity after the solve (`v_free_all`) would have kept: their two points approach fast
-    /// enough to close the gap by the speculation's own measure. True if there is one.
+    /// enough to close the gap by the speculation's own measure. True if there is one, or if
+    /// a joint-limit stop left without a row closes by the same measure (the next pass of
+    /// [`World::add_rows`] judges those by the solved velocity itself).
     fn close_dropped_contacts(&mut self, h: f64) -> bool {
+        let limit_speculation =
+            Speculation { always_within: self.options.limits.speculative_within, ..self.options.speculation };
+        let v = self.v_free_all.as_slice();
+        let limit_closes = self
+            .limits_dropped
+            .iter()
+            .any(|d| limit_speculation.keeps(d.distance, d.closing_speed(v).max(0.0), h));
         if self.speculation_dropped.is_empty() {
-            return false;
+            return limit_closes;
         }
         // The bodies' velocities after the solve, once per multibody that has a dropped contact.
         self.speculation_updated.clear();
@@ -910,7 +931,7 @@ impl World {
                 found = true;
             }
         }
-        found
+        found || limit_closes
     }
 
     fn add_rows(&mut self, h: f64) {
@@ -957,16 +978,20 @@ impl World {
         );
         self.contacts = contacts;
         self.speculation_dropped = dropped;
+        let mut limits_dropped = std::mem::take(&mut self.limits_dropped);
+        limits_dropped.clear();
         for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {
+            let solved = self.solved_pass.then_some(&b.v_solved);
             add_joint_limit_rows_speculative(
                 &mut builder,
                 &b.model,
                 &b.state.q,
-                (&b.state.v, &b.v_free),
+                LimitVelocities { start: &b.state.v, free: &b.v_free, solved },
                 b.col,
                 h,
                 &self.options.limits,
                 Speculation { always_within: self.options.limits.speculative_within, ..speculation },
+                &mut limits_dropped,
             );
             for (k, motor) in b.motors.iter().enumerate() {
                 if let Some(m) = motor {
@@ -998,6 +1023,7 @@ impl World {
                 );
             }
         }
+        self.limits_dropped = limits_dropped;
         self.builder = builder;
     }
 

@@ -122,6 +122,9 @@ pub struct Multibody {
     /// The same under the velocity after the step's solve
     /// ([`Multibody::update_solved_world_velocities`]).
     pub(crate) solved_world_velocities: Vec<Motion>,
+    /// The velocity after the step's first solve, while the world solves again
+    /// ([`super::World::step`]'s check after the solve).
+    pub(crate) v_solved: DVector<f64>,
 }
 
 impl Multibody {
@@ -156,6 +159,7 @@ impl Multibody {
             constant_mass_factored: false,
             world_velocities: vec![(Motion::zero(), Motion::zero()); nb],
             solved_world_velocities: vec![Motion::zero(); nb],
+            v_solved: DVector::zeros(nv),
             model,
         }
     }
