@@ -3,7 +3,8 @@
 //!
 //! [`World::step`] is the table of contents (as in ../shared/DESIGN.md):
 //! check state finite → kinematics → collision → free motion → constraint rows → solve →
-//! velocity update → integrate q on the manifold (free origins on straight lines, see
+//! velocity update (→ rows for the speculative contacts and limit stops that the solved velocity
+//! closes, and solve again) → integrate q on the manifold (free origins on straight lines, see
 //! [`crate::model::Joint::integrate_decoupled`]) → project loop closures onto their manifold
 //! ([`LoopProjection`]) → sleeping and statistics.
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
@@ -163,9 +164,9 @@ pub struct World {
     /// This step's contacts that the speculation test left without rows.
     speculation_dropped: Vec<usize>,
     /// Per contact of this step: given rows after a solve whose velocities close it
-    /// ([`World::close_dropped_contacts`]).
+    /// ([`World::close_dropped_rows`]).
     speculation_forced: Vec<bool>,
-    /// Per multibody: its velocities after the solve are computed (`close_dropped_contacts`).
+    /// Per multibody: its velocities after the solve are computed (`close_dropped_rows`).
     speculation_updated: Vec<bool>,
     /// This step's joint-limit stops that the speculation left without a row.
     limits_dropped: Vec<DroppedLimit>,
@@ -635,11 +636,11 @@ impl World {
         if rows > 0 {
             self.apply_problem_impulses();
         }
-        // A contact the speculation test left out may be closed by the impulses of the others
-        // (a resting hand flicked down by a body landing on its arm): then it gets rows and the
-        // problem is solved again, warm-started from this solve.
+        // A contact or limit stop the speculation test left out may be closed by the impulses of
+        // the other rows (a resting hand flicked down by a body landing on its arm): then it gets
+        // rows and the problem is solved again, warm-started from this solve.
         for _ in 0..SPECULATION_PASSES {
-            if !self.close_dropped_contacts(h) {
+            if !self.close_dropped_rows(h) {
                 break;
             }
             for b in &mut self.bodies {
@@ -669,6 +670,7 @@ impl World {
             });
         }
         lap(4, &mut clock);
+        // Integration on the manifold; commit only if all is finite.
         for i in 0..self.bodies.len() {
             let b = &mut self.bodies[i];
             let nv = b.model.nv();
@@ -888,7 +890,7 @@ impl World {
     /// enough to close the gap by the speculation's own measure. True if there is one, or if
     /// a joint-limit stop left without a row closes by the same measure (the next pass of
     /// [`World::add_rows`] judges those by the solved velocity itself).
-    fn close_dropped_contacts(&mut self, h: f64) -> bool {
+    fn close_dropped_rows(&mut self, h: f64) -> bool {
         let limit_speculation =
             Speculation { always_within: self.options.limits.speculative_within, ..self.options.speculation };
         let v = self.v_free_all.as_slice();
@@ -1192,8 +1194,9 @@ fn block_factors<'a>(
     }
 }
 
-/// Solves per step after the first for contacts that the speculation test left out and the
-/// solved velocity closes ([`World::close_dropped_contacts`]): each pass adds those it finds.
+/// Solves per step after the first for contacts and limit stops that the speculation test left
+/// out and the solved velocity closes ([`World::close_dropped_rows`]): each pass adds those it
+/// finds.
 const SPECULATION_PASSES: usize = 2;
 
 /// The number of rows from row `i` on that share its origin (a contact's rows are consecutive).
