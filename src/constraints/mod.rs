@@ -10,7 +10,7 @@
 //! friction is an exact cone or a pyramid ([`FrictionModel`]).
 //!
 //! The [`ConstraintProblem`] is plain data: every solver reads the same struct, the residuals
-//! are computed from it by one function ([`crate::solvers::residuals`]), and it can be written to
+//! are computed from it by one function ([`crate::solvers::residuals()`]), and it can be written to
 //! files for QP-solver regression tests.
 
 mod assemble;

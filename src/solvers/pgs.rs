@@ -69,7 +69,7 @@ pub struct PgsSolver {
     /// Exact residual (m/s) at which a subspace step ends the solve: λ as the sweeps left it if
     /// its residual is already within it, or the step's result if it gets there. `None`: the
     /// sweep tolerance `tolerance`. A [`super::SolverChain`] sets it to a tenth of the
-    /// tolerance it certifies against ([`CERTIFIED_SHARE`]).
+    /// tolerance it certifies against (`CERTIFIED_SHARE`).
     pub residual_goal: Option<f64>,
     /// Scratch space reused between solves (leave it at its default).
     pub workspace: PgsWorkspace,

@@ -1175,7 +1175,7 @@ impl World {
 }
 
 /// How far (m) a contact's point may have moved since the last step for it to take that
-/// step's impulses of its collider pair when its feature key changed ([`World::warm_start`]).
+/// step's impulses of its collider pair when its feature key changed (the world's warm start).
 /// Below the spacing of two contacts of one pair (a box's corners, a capsule's two ends), above
 /// what a resting contact moves.
 pub const WARM_MATCH_DISTANCE: f64 = 0.005;

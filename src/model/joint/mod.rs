@@ -62,7 +62,7 @@ pub enum Joint {
     },
     /// ODE's hinge2 (steer + spin) in generalized coordinates: optional suspension travel `s` (m)
     /// along `axis1`, steering θ₁ about `axis1` (fixed in the parent), spin θ₂ about `axis2` (fixed
-    /// in the child). q = [s,] θ₁, θ₂; nq = nv = 2, or 3 with suspension.
+    /// in the child). q = (s,) θ₁, θ₂ (s only with a suspension); nq = nv = 2, or 3 with suspension.
     Hinge2 {
         /// Steering (and suspension) axis, joint frame.
         axis1: Vec3,
