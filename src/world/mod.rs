@@ -922,7 +922,7 @@ impl World {
             let c = &self.contacts[k];
             let velocity = |side: Attachment, p: &Vec3| match side {
                 Attachment::Body { multibody, body } => {
-                    let at = &self.bodies[multibody].solved_world_velocities[body];
+                    let at = &self.bodies[multibody].world_velocities.solved[body];
                     at.linear + at.angular.cross(p)
                 }
                 Attachment::World => Vec3::zeros(),
@@ -964,7 +964,8 @@ impl World {
                 // The closing speed of the contact's two points under v and under v_free.
                 let point_velocities = |side: Attachment, p: &Vec3| match side {
                     Attachment::Body { multibody, body } => {
-                        let (at_v, at_free) = &bodies[multibody].world_velocities[body];
+                        let velocities = &bodies[multibody].world_velocities;
+                        let (at_v, at_free) = (&velocities.start[body], &velocities.free[body]);
                         (at_v.linear + at_v.angular.cross(p), at_free.linear + at_free.angular.cross(p))
                     }
                     Attachment::World => (Vec3::zeros(), Vec3::zeros()),

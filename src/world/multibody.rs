@@ -116,15 +116,40 @@ pub struct Multibody {
     /// the factorization. Other writers of the factor (smooth steps) write the same M, up to
     /// round-off.
     constant_mass_factored: bool,
-    /// Per body, its spatial velocity in world axes about the world origin under `state.v` and
-    /// under `v_free` ([`Multibody::update_world_velocities`]).
-    pub(crate) world_velocities: Vec<(Motion, Motion)>,
-    /// The same under the velocity after the step's solve
-    /// ([`Multibody::update_solved_world_velocities`]).
-    pub(crate) solved_world_velocities: Vec<Motion>,
+    /// Per body, its spatial velocity in world axes about the world origin under `state.v`, under
+    /// `v_free` ([`Multibody::update_world_velocities`]) and under the velocity after the
+    /// step's solve ([`Multibody::update_solved_world_velocities`]).
+    pub(crate) world_velocities: WorldVelocities,
     /// The velocity after the step's first solve, while the world solves again
     /// ([`super::World::step`]'s check after the solve).
     pub(crate) v_solved: DVector<f64>,
+}
+
+/// Per body of a multibody, its spatial velocity in world axes about the world origin under
+/// three velocities of a step (see [`Multibody::update_world_velocities`]).
+#[derive(Clone, Debug)]
+pub(crate) struct WorldVelocities {
+    /// Under the state's velocity at the start of the step.
+    pub(crate) start: Vec<Motion>,
+    /// Under the free velocity.
+    pub(crate) free: Vec<Motion>,
+    /// Under the velocity after the step's solve.
+    pub(crate) solved: Vec<Motion>,
+}
+
+/// `V_b = V_parent + Σ_k J_k v_k` over the columns of body b's joint (world axes, about the world
+/// origin; `data.j_world` current): every body's spatial velocity under `v` into `out` (one per
+/// body; the root's entry stays zero).
+fn propagate_world_velocities(model: &Model, data: &Data, v: &[f64], out: &mut [Motion]) {
+    for i in 1..model.nbodies() {
+        let mut at = out[model.parent(i)];
+        let dofs = model.idx_v(i)..model.idx_v(i) + model.joint(i).nv();
+        for (column, vk) in data.j_world[dofs.clone()].iter().zip(&v[dofs]) {
+            at.linear += column.linear * *vk;
+            at.angular += column.angular * *vk;
+        }
+        out[i] = at;
+    }
 }
 
 impl Multibody {
@@ -157,48 +182,31 @@ impl Multibody {
             rhs: DVector::zeros(nv),
             factored: false,
             constant_mass_factored: false,
-            world_velocities: vec![(Motion::zero(), Motion::zero()); nb],
-            solved_world_velocities: vec![Motion::zero(); nb],
+            world_velocities: WorldVelocities {
+                start: vec![Motion::zero(); nb],
+                free: vec![Motion::zero(); nb],
+                solved: vec![Motion::zero(); nb],
+            },
             v_solved: DVector::zeros(nv),
             model,
         }
     }
 
-    /// Fills `world_velocities`: the spatial velocity of every body in world axes about the
-    /// world origin (a point p of the body moves at `linear + angular × p`) under the state's
-    /// velocity and under the free velocity, `V_b = V_parent + Σ_k J_k v_k` over the columns of
-    /// b's joint (`data.j_world` must be current). O(nv): the world's speculative-contact test
-    /// reads a contact's closing speed from it instead of forming the contact's Jacobian.
+    /// Fills `world_velocities.start` and `.free`: the spatial velocity of every body in world
+    /// axes about the world origin (a point p of the body moves at `linear + angular × p`) under
+    /// the state's velocity and under the free velocity (`data.j_world` must be current). O(nv):
+    /// the world's speculative-contact test reads a contact's closing speed from it instead of
+    /// forming the contact's Jacobian.
     pub(crate) fn update_world_velocities(&mut self) {
-        let (model, data) = (&self.model, &self.data);
-        for i in 1..model.nbodies() {
-            let (mut at_v, mut at_free) = self.world_velocities[model.parent(i)];
-            for k in model.idx_v(i)..model.idx_v(i) + model.joint(i).nv() {
-                let column = &data.j_world[k];
-                let (v, v_free) = (self.state.v[k], self.v_free[k]);
-                at_v.linear += column.linear * v;
-                at_v.angular += column.angular * v;
-                at_free.linear += column.linear * v_free;
-                at_free.angular += column.angular * v_free;
-            }
-            self.world_velocities[i] = (at_v, at_free);
-        }
+        let (model, data, out) = (&self.model, &self.data, &mut self.world_velocities);
+        propagate_world_velocities(model, data, self.state.v.as_slice(), &mut out.start);
+        propagate_world_velocities(model, data, self.v_free.as_slice(), &mut out.free);
     }
 
-    /// Fills `solved_world_velocities` as [`Multibody::update_world_velocities`] does, under the
-    /// velocity `v` after a solve (this multibody's nv entries): for the contacts the world
-    /// checks after the solve ([`super::World::step`]).
+    /// Fills `world_velocities.solved` the same way under `v`, the velocity after a solve (this
+    /// multibody's nv entries): for the contacts the world checks after the solve.
     pub(crate) fn update_solved_world_velocities(&mut self, v: &[f64]) {
-        let (model, data) = (&self.model, &self.data);
-        for i in 1..model.nbodies() {
-            let mut at = self.solved_world_velocities[model.parent(i)];
-            let dofs = model.idx_v(i)..model.idx_v(i) + model.joint(i).nv();
-            for (column, vk) in data.j_world[dofs.clone()].iter().zip(&v[dofs]) {
-                at.linear += column.linear * *vk;
-                at.angular += column.angular * *vk;
-            }
-            self.solved_world_velocities[i] = at;
-        }
+        propagate_world_velocities(&self.model, &self.data, v, &mut self.world_velocities.solved);
     }
 
     /// The model.
