@@ -170,9 +170,6 @@ pub struct World {
     speculation_updated: Vec<bool>,
     /// This step's joint-limit stops that the speculation left without a row.
     limits_dropped: Vec<DroppedLimit>,
-    /// The rows are being added again after a solve: limits are judged by `Multibody::v_solved`
-    /// too.
-    solved_pass: bool,
     v_all: DVector<f64>,
     v_free_all: DVector<f64>,
     /// Diagonal blocks of the stacked mass matrix (first column, width): one per root subtree
@@ -220,7 +217,6 @@ impl World {
             speculation_forced: Vec::new(),
             speculation_updated: Vec::new(),
             limits_dropped: Vec::new(),
-            solved_pass: false,
             v_all: DVector::zeros(0),
             v_free_all: DVector::zeros(0),
             blocks: Vec::new(),
@@ -613,9 +609,8 @@ impl World {
         self.speculation_forced.resize(self.contacts.len(), false);
         self.speculation_dropped.clear();
         self.limits_dropped.clear();
-        self.solved_pass = false;
         if has_rows && !smooth {
-            self.add_rows(h);
+            self.add_rows(h, false);
         }
         let mut rows = self.builder.len();
         // 6. Solve.
@@ -649,8 +644,7 @@ impl World {
                 self.v_free_all.rows_mut(b.col, nv).copy_from(&b.v_free);
             }
             self.builder.clear();
-            self.solved_pass = true;
-            self.add_rows(h);
+            self.add_rows(h, true);
             rows = self.builder.len();
             self.build_problem();
             self.warm_start();
@@ -936,7 +930,9 @@ impl World {
         found || limit_closes
     }
 
-    fn add_rows(&mut self, h: f64) {
+    /// Appends this step's rows to `self.builder`. `after_solve`: the step was solved once, and
+    /// limit stops are judged by the solved velocity (`Multibody::v_solved`) too.
+    fn add_rows(&mut self, h: f64, after_solve: bool) {
         let mut builder = std::mem::replace(&mut self.builder, ProblemBuilder::new(0, self.options.friction));
         if self.options.speculation.speed_factor.is_finite() {
             for b in &mut self.bodies {
@@ -984,7 +980,7 @@ impl World {
         let mut limits_dropped = std::mem::take(&mut self.limits_dropped);
         limits_dropped.clear();
         for b in bodies.iter().filter(|b| !b.asleep && !b.kinematic) {
-            let solved = self.solved_pass.then_some(&b.v_solved);
+            let solved = after_solve.then_some(&b.v_solved);
             add_joint_limit_rows_speculative(
                 &mut builder,
                 &b.model,
