@@ -211,6 +211,8 @@ pub(crate) struct SubspaceWorkspace {
     pub(crate) residuals: Option<super::Residuals>,
     /// Reduced solves (rounds) of the last step.
     pub(crate) rounds: usize,
+    /// The exact residual of the λ the last step started from (m/s).
+    pub(crate) start_residual: f64,
 }
 
 impl SubspaceWorkspace {
@@ -290,6 +292,7 @@ pub(crate) fn subspace_step(
     };
     ws.residuals = None;
     ws.rounds = 0;
+    ws.start_residual = current.exact();
     ws.released = None;
     ws.release_refused.clear();
     if current.exact() <= converged {
