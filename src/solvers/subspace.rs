@@ -211,7 +211,8 @@ pub(crate) struct SubspaceWorkspace {
     pub(crate) residuals: Option<super::Residuals>,
     /// Reduced solves (rounds) of the last step.
     pub(crate) rounds: usize,
-    /// The exact residual of the λ the last step started from (m/s).
+    /// The exact residual of the λ the last step started from (m/s; infinite if the step was
+    /// not tried).
     pub(crate) start_residual: f64,
 }
 
@@ -279,6 +280,7 @@ pub(crate) fn subspace_step(
     converged: f64,
 ) -> SubspaceOutcome {
     let n = problem.rows();
+    ws.start_residual = f64::INFINITY;
     if n > MAX_SUBSPACE {
         return SubspaceOutcome::Skipped;
     }
