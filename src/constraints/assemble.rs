@@ -251,14 +251,17 @@ impl ProblemBuilder {
     /// Rows `i..i + 3` (a contact's normal and friction rows, over the same blocks) into `sp`:
     /// W for the three at once, as three lanes of one walk of the ancestor stretches
     /// ([`TreeFactor::scale_lanes`]) — the walk's overhead, not its products, dominates on the
-    /// short stretches of a ragdoll's paths.
+    /// short stretches of a ragdoll's paths. `jv` gets their J v_free.
+    #[allow(clippy::too_many_arguments)]
     fn push_contact_rows<'f>(
         &self,
         i: usize,
         contact: usize,
         factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+        v_free: &[f64],
         lanes: &mut Vec<[f64; 4]>,
         sp: &mut RowSparsity,
+        jv: &mut [f64],
     ) {
         // Lanes of every segment, one after the other; per segment the last non-zero entry of
         // each row (None: the row is zero on that block).
@@ -266,8 +269,12 @@ impl ProblemBuilder {
         let mut lasts = [[None; 3]; MAX_CONTACT_SEGMENTS];
         let mut shape = [(0usize, 0usize, None); MAX_CONTACT_SEGMENTS];
         let mut count = 0;
+        // J v_free of the three rows, from the lanes before they are scaled (J's non-zeros are
+        // in them), four-wide.
+        let mut velocity = [0.0; 4];
         let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
-        while let (Some((b, _, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next()) {
+        while let (Some((b, col, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next())
+        {
             let offset = lanes.len();
             // Along the chain only where it is shorter than the block (a free body's chain is
             // its whole block: there the dense lanes are cheaper).
@@ -292,6 +299,12 @@ impl ProblemBuilder {
                 for (r, last) in lasts[count].iter_mut().enumerate() {
                     *last = u.iter().rposition(|x| x[r] != 0.0).map(k_of);
                 }
+                for (p, x) in u.iter().enumerate() {
+                    let v = v_free[col + k_of(p)];
+                    for a in 0..4 {
+                        velocity[a] += x[a] * v;
+                    }
+                }
                 if lasts[count].iter().any(Option::is_some) {
                     factor.scale_chain_lanes(tail, u);
                 }
@@ -299,6 +312,13 @@ impl ProblemBuilder {
                 lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
                 lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
                 let last = lasts[count].iter().flatten().max().copied();
+                if let Some(last) = last {
+                    for (x, v) in lanes[offset..=offset + last].iter().zip(&v_free[col..]) {
+                        for a in 0..4 {
+                            velocity[a] += x[a] * v;
+                        }
+                    }
+                }
                 if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
                     factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
                 } else {
@@ -308,6 +328,7 @@ impl ProblemBuilder {
             shape[count] = (b, offset, chain);
             count += 1;
         }
+        jv[i..i + 3].copy_from_slice(&velocity[..3]);
         for r in 0..3 {
             let mut norm2 = 0.0;
             for s in 0..count {
@@ -465,19 +486,23 @@ impl ProblemBuilder {
         problem.kept_lambda.0.get_mut().clear();
         let mut lanes = std::mem::take(problem.lanes.0.get_mut());
         let sp = &mut problem.sparsity;
+        // J v_free per row, formed with the rows (the bias below).
+        let jv = problem.bias.as_mut_slice();
+        let v_free = v_free.as_slice();
         let (mut i, mut next_contact) = (0, 0);
         while i < n {
             while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
                 next_contact += 1;
             }
             if self.contacts.get(next_contact).is_some_and(|c| c.normal == i) && self.same_blocks(i, 3) {
-                self.push_contact_rows(i, next_contact, &factor_of, &mut lanes, sp);
+                self.push_contact_rows(i, next_contact, &factor_of, v_free, &mut lanes, sp, jv);
                 i += 3;
                 continue;
             }
-            let mut norm2 = 0.0;
-            for (b, _, segment) in self.segments(i) {
+            let (mut norm2, mut velocity) = (0.0, 0.0);
+            for (b, col, segment) in self.segments(i) {
                 let Some(last) = last_nonzero(segment) else { continue };
+                velocity += dot(&segment[..=last], &v_free[col..=col + last]);
                 let start = sp.w_values.len();
                 sp.w_values.extend_from_slice(segment);
                 let span = match factor_of(b) {
@@ -492,6 +517,7 @@ impl ProblemBuilder {
             sp.row_norm2.push(norm2);
             sp.run_start.push(sp.runs.len());
             sp.row_start.push(sp.blocks_of_row.len());
+            jv[i] = velocity;
             i += 1;
         }
         *problem.lanes.0.get_mut() = lanes;
@@ -534,7 +560,7 @@ impl ProblemBuilder {
             }
         }
         for i in 0..n {
-            problem.bias[i] = self.row_dot(i, v_free.as_slice()) - self.targets[i];
+            problem.bias[i] -= self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }
@@ -932,6 +958,67 @@ mod tests {
         for i in 0..builder.len() {
             let norm2 = problem.sparsity.row_norm2[i];
             assert!((norm2 - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
+        }
+    }
+
+    #[test]
+    fn joint_rows_give_the_delassus_matrix_and_bias_of_a_dense_solve() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
+        let model = load_file(path, &UrdfOptions::floating()).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+        let q = model.random_configuration(&mut rng);
+        let mut data = Data::new(&model);
+        crba(&model, &mut data, &q).unwrap();
+        let m = data.mass_matrix.clone();
+        factor_mass_matrix(&model, &mut data).unwrap();
+        let nv = model.nv();
+        let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
+        // Rows on the dofs of one joint (a ball joint's three friction rows, a limit on a
+        // combination of two of them), a row on two limbs' dofs, unit rows on one chain and a
+        // unit row on a root dof; J v_free is formed with the rows (the bias).
+        let deepest = last_dof_of(&model, model.nbodies() - 1);
+        let other_limb = last_dof_of(&model, model.nbodies() / 2);
+        let unit = |builder: &mut ProblemBuilder, entries: &[(usize, f64)]| {
+            let (_, mut row) =
+                builder.push_row(RowLaw::Bounded { lo: -1.0, hi: 1.0 }, 0.0, 0.0, RowOrigin::Other);
+            for &(k, value) in entries {
+                row[k] = value;
+            }
+        };
+        let joint = deepest - 2;
+        for k in joint..=deepest {
+            unit(&mut builder, &[(k, 1.0)]);
+        }
+        unit(&mut builder, &[(joint, 0.6), (joint + 1, -0.8)]);
+        unit(&mut builder, &[(deepest, 1.0), (other_limb, 0.5)]);
+        let chain: Vec<usize> =
+            model.dof_path[model.dof_path_start[deepest]..model.dof_path_start[deepest + 1]].to_vec();
+        for &k in chain.iter().rev().take(5) {
+            unit(&mut builder, &[(k, rng.random_range(-1.0..1.0))]);
+        }
+        unit(&mut builder, &[(0, 1.0)]);
+        let mut problem = ConstraintProblem::default();
+        let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
+        assemble_single(&builder, &model, &data, &v_free, &mut problem);
+        let j = problem.jacobian.clone();
+        let expected = &j * m.cholesky().unwrap().solve(&j.transpose());
+        let scale = expected.abs().max();
+        assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
+        let velocity = &j * &v_free;
+        for i in 0..builder.len() {
+            assert!((problem.sparsity.row_norm2[i] - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
+            assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
+            // W's rows are the dense solve's M⁻¹Jᵀ mapped back (their spans too).
+            let dense = problem.minv_jt.column(i);
+            let mut row = vec![0.0; nv];
+            for (col, w) in problem.sparsity.row_spans(i) {
+                row[col..col + w.len()].copy_from_slice(w);
+            }
+            let factor = TreeFactor::new(&model, &data);
+            factor.unscale_solve(0, &mut row);
+            for k in 0..nv {
+                assert!((row[k] - dense[k]).abs() < 1e-12 * dense.amax().max(1.0), "row {i}, dof {k}");
+            }
         }
     }
 }
