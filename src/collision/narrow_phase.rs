@@ -32,7 +32,7 @@ pub(crate) struct PairState {
 /// Per-pair state keyed by (collider A, collider B).
 #[derive(Default)]
 pub(crate) struct PairCache {
-    pub pairs: HashMap<(u32, u32), PairState>,
+    pub pairs: HashMap<(u32, u32), PairState, crate::math::FastHasher>,
 }
 
 impl PairCache {

@@ -13,11 +13,13 @@
 //! `v_b` a velocity expressed in B, `x_lp` a pose in the parent body's frame.
 
 mod force;
+mod hash;
 mod inertia;
 mod motion;
 mod transform;
 
 pub use force::Force;
+pub(crate) use hash::FastHasher;
 pub use inertia::SpatialInertia;
 pub use motion::Motion;
 pub use transform::{axis_angle, exp3, log3, skew, Transform};

@@ -33,7 +33,7 @@ use crate::constraints::{
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
 use crate::integrators::{IntegratorError, IntegratorKind};
-use crate::math::{Transform, Vec3};
+use crate::math::{FastHasher, Transform, Vec3};
 use crate::model::{Model, Shape};
 use crate::solvers::{Fallback, SolverChain, SolverError};
 use nalgebra::DVector;
@@ -134,7 +134,7 @@ pub struct World {
     names: Vec<String>,
     collision: CollisionWorld,
     materials: Vec<ContactParameters>,
-    pair_parameters: HashMap<(u32, u32), ContactParameters>,
+    pair_parameters: HashMap<(u32, u32), ContactParameters, FastHasher>,
     /// Loop closures: (multibody of body A, multibody of body B, the closure).
     loops: Vec<(usize, usize, LoopClosure)>,
     /// Per multibody, the buffers of the position projection of its own loop closures (None
@@ -150,7 +150,7 @@ pub struct World {
     warm_keys: Vec<u64>,
     warm_values: Vec<f64>,
     /// Key → position in `warm_keys`, built only in steps whose rows came in another order.
-    warm_index: HashMap<u64, usize, KeyHasher>,
+    warm_index: HashMap<u64, usize, FastHasher>,
     /// This step's row keys (become `warm_keys` once solved).
     row_keys: Vec<u64>,
     /// Last step's contacts with rows, for those whose key changed ([`World::warm_start`]).
@@ -198,7 +198,7 @@ impl World {
             options,
             bodies: Vec::new(),
             names: Vec::new(),
-            pair_parameters: HashMap::new(),
+            pair_parameters: HashMap::default(),
             loops: Vec::new(),
             projections: Vec::new(),
             smooth: smooth::SmoothSteppers::default(),
@@ -1295,33 +1295,6 @@ fn position_of_dof(model: &Model, q: &DVector<f64>, k: usize) -> f64 {
         q[model.idx_q(j) + (k - model.idx_v(j))]
     } else {
         0.0
-    }
-}
-
-/// Hasher of the warm-start map: its keys are already mixed 64-bit row keys ([`World::row_key`]),
-/// so one multiply-xorshift replaces SipHash (which took ~5 % of a resting stack's step).
-#[derive(Clone, Copy, Debug, Default)]
-struct KeyHasher(u64);
-
-impl std::hash::Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        let x = self.0.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        x ^ (x >> 32)
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0.rotate_left(8)) ^ u64::from(b);
-        }
-    }
-    fn write_u64(&mut self, x: u64) {
-        self.0 ^= x;
-    }
-}
-
-impl std::hash::BuildHasher for KeyHasher {
-    type Hasher = KeyHasher;
-    fn build_hasher(&self) -> KeyHasher {
-        KeyHasher(0)
     }
 }
 
