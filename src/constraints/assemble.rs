@@ -660,23 +660,24 @@ impl<'a> TreeFactor<'a> {
         let path = self.chain(tail);
         debug_assert_eq!(u.len(), path.len() + 1);
         let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
-        // Entry q collects L_pq u_p from the later entries p, the latest first: the order in
-        // which a right-looking pass (each u_p subtracted from all earlier entries) would
-        // apply them, with the running value in a register instead of stored and reloaded
-        // once per later entry. A chain whose rows of L are all zero off the diagonal (bodies
-        // whose origins are their centres of mass, on principal axes) has nothing to collect.
-        if (0..u.len()).any(|p| self.coupled[dof_at(p)]) {
-            for q in (0..u.len()).rev() {
-                let mut uq = u[q];
-                for p in (q + 1..u.len()).rev() {
-                    let dof = dof_at(p);
-                    let l = self.packed[self.dof_path_start[dof] + dof + q];
-                    let up = u[p];
-                    for a in 0..4 {
-                        uq[a] -= l * up[a];
-                    }
+        // Right-looking: the latest entry p first, u_p subtracted from every earlier entry q
+        // with L_pq, read from p's packed row, which holds its ancestors' entries in the
+        // chain's order (the same operations in the same order per entry as collecting each
+        // q from the later p, which looked each L_pq up by its own index). A dof whose row of L
+        // is zero off the diagonal (a body whose origin is its centre of mass, on principal
+        // axes) has nothing to subtract.
+        for p in (1..u.len()).rev() {
+            let dof = dof_at(p);
+            if !self.coupled[dof] {
+                continue;
+            }
+            let row = &self.packed[self.dof_path_start[dof] + dof..][..p];
+            let (earlier, rest) = u.split_at_mut(p);
+            let up = rest[0];
+            for (uq, &l) in earlier.iter_mut().zip(row) {
+                for a in 0..4 {
+                    uq[a] -= l * up[a];
                 }
-                u[q] = uq;
             }
         }
         for (p, w) in u.iter_mut().enumerate() {
