@@ -270,8 +270,9 @@ impl ProblemBuilder {
         let mut shape = [(0usize, 0usize, None); MAX_CONTACT_SEGMENTS];
         let mut count = 0;
         // J v_free of the three rows, from the lanes before they are scaled (J's non-zeros are
-        // in them), four-wide.
-        let mut velocity = [0.0; 4];
+        // in them), four-wide, per segment with the partial sums of [`dot`] over its full width
+        // (the same value to the last bit as the full-width dot it replaces).
+        let mut velocity = [-0.0; 4];
         let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
         while let (Some((b, col, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next())
         {
@@ -299,12 +300,15 @@ impl ProblemBuilder {
                 for (r, last) in lasts[count].iter_mut().enumerate() {
                     *last = u.iter().rposition(|x| x[r] != 0.0).map(k_of);
                 }
+                let mut partial = [[0.0; 4]; 4];
                 for (p, x) in u.iter().enumerate() {
-                    let v = v_free[col + k_of(p)];
+                    let k = k_of(p);
+                    let (v, sum) = (v_free[col + k], &mut partial[dot_partial(k, j0.len())]);
                     for a in 0..4 {
-                        velocity[a] += x[a] * v;
+                        sum[a] += x[a] * v;
                     }
                 }
+                add_partials(&mut velocity, &partial);
                 if lasts[count].iter().any(Option::is_some) {
                     factor.scale_chain_lanes(tail, u);
                 }
@@ -313,11 +317,14 @@ impl ProblemBuilder {
                 lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
                 let last = lasts[count].iter().flatten().max().copied();
                 if let Some(last) = last {
-                    for (x, v) in lanes[offset..=offset + last].iter().zip(&v_free[col..]) {
+                    let mut partial = [[0.0; 4]; 4];
+                    for (k, (x, v)) in lanes[offset..=offset + last].iter().zip(&v_free[col..]).enumerate() {
+                        let sum = &mut partial[dot_partial(k, j0.len())];
                         for a in 0..4 {
-                            velocity[a] += x[a] * v;
+                            sum[a] += x[a] * v;
                         }
                     }
+                    add_partials(&mut velocity, &partial);
                 }
                 if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
                     factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
@@ -499,10 +506,10 @@ impl ProblemBuilder {
                 i += 3;
                 continue;
             }
-            let (mut norm2, mut velocity) = (0.0, 0.0);
+            let (mut norm2, mut velocity) = (0.0, -0.0);
             for (b, col, segment) in self.segments(i) {
                 let Some(last) = last_nonzero(segment) else { continue };
-                velocity += dot(&segment[..=last], &v_free[col..=col + last]);
+                velocity += dot(segment, &v_free[col..col + segment.len()]);
                 let start = sp.w_values.len();
                 sp.w_values.extend_from_slice(segment);
                 let span = match factor_of(b) {
@@ -568,6 +575,24 @@ impl ProblemBuilder {
         problem.contacts.clone_from(&self.contacts);
         problem.origins.clone_from(&self.origins);
         problem.friction = self.friction;
+    }
+}
+
+/// The partial sum of [`dot`] over `width` entries that entry `k` goes to: `k mod 4` in the
+/// whole chunks of four, the first one in the remainder.
+fn dot_partial(k: usize, width: usize) -> usize {
+    if k < width - width % 4 {
+        k % 4
+    } else {
+        0
+    }
+}
+
+/// Adds, per lane, the segment's dot product from its four partial sums (`partial[s][lane]`),
+/// combined as [`dot`] combines them.
+fn add_partials(total: &mut [f64; 4], partial: &[[f64; 4]; 4]) {
+    for (a, total) in total.iter_mut().enumerate() {
+        *total += (partial[0][a] + partial[1][a]) + (partial[2][a] + partial[3][a]);
     }
 }
 

@@ -6,7 +6,6 @@
 use super::{ContactBlock, ProblemBuilder, RowLaw, RowOrigin};
 use crate::collision::{add_point_rates_row, point_rates, tangents, Attachment, Contact};
 use crate::data::Data;
-use crate::math::Vec3;
 use crate::model::{Model, NO_DOF};
 use nalgebra::DVector;
 
@@ -153,9 +152,7 @@ pub fn add_contact_rows_with<'a>(
             let (_, mut row) = builder.push_row(law, 0.0, softness, origin);
             add_point_rates_row(&rates, direction, &mut row);
         }
-        // The normal velocity from the point rates (J's normal row is n · rate per column).
-        let point_velocity = rates.iter().fold(Vec3::zeros(), |u, (c, rate)| u + rate * v[*c]);
-        let approach = contact.normal.dot(&point_velocity);
+        let approach = builder.row_dot(normal_row, v.as_slice());
         let target = p.target_normal_velocity(contact.distance, approach, h);
         builder.set_target(normal_row, target);
         let block = ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) };
