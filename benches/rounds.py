@@ -14,7 +14,10 @@ Each `--gelenk NAME=BINARY:SCENE` runs `BINARY bench world SCENE --rounds 5` (me
 episodes of each episode's mean µs per step); each `--mujoco NAME=FILE` runs five episodes of
 2500 `mj_step`s from keyframe 0 if the file has one (the statistic of benches/mujoco_peers.py).
 Prints every round, then per entry the median and range of its episode means, and the median
-and range of every gelenk entry's per-round ratio to every other entry.
+and range of every gelenk entry's per-round ratio to every other entry. `--sleep TOL` runs both
+sides with sleeping on: gelenk's `bench world --sleep` (thresholds 0.01 m/s and rad/s), MuJoCo's
+`mjENBL_SLEEP` with `sleep_tolerance = TOL` (its default, 1e-3, never puts the humanoid of
+../shared/peers to sleep within the 5 s).
 """
 import argparse
 import re
@@ -24,11 +27,10 @@ import subprocess
 EPISODE_MEAN = re.compile(r"([0-9.]+) µs/step \(episode mean\)")
 
 
-def gelenk_mean(binary, scene):
+def gelenk_mean(binary, scene, sleep):
+    command = [binary, "bench", "world", scene, "--rounds", "5"] + (["--sleep"] if sleep else [])
     try:
-        out = subprocess.run(
-            [binary, "bench", "world", scene, "--rounds", "5"], check=True, capture_output=True, text=True
-        ).stdout
+        out = subprocess.run(command, check=True, capture_output=True, text=True).stdout
     except FileNotFoundError:
         raise SystemExit(f"no gelenk binary at {binary}")
     except subprocess.CalledProcessError as e:
@@ -57,18 +59,28 @@ def main():
     parser.add_argument("--rounds", type=int, default=10)
     parser.add_argument("--gelenk", action="append", default=[], type=lambda t: named(t, "--gelenk"))
     parser.add_argument("--mujoco", action="append", default=[], type=lambda t: named(t, "--mujoco"))
+    parser.add_argument(
+        "--sleep",
+        type=float,
+        metavar="TOL",
+        help="sleeping on both sides: `bench world --sleep` for gelenk (its default thresholds, "
+        "0.01 m/s and rad/s), MuJoCo's mjENBL_SLEEP with sleep_tolerance TOL",
+    )
     args = parser.parse_args()
     entries = []
     for name, rest in args.gelenk:
         binary, sep, scene = rest.rpartition(":")
         if not sep:
             raise SystemExit(f"--gelenk {name}: expected BINARY:SCENE, got {rest!r}")
-        entries.append((name, lambda b=binary, s=scene: gelenk_mean(b, s)))
+        entries.append((name, lambda b=binary, s=scene: gelenk_mean(b, s, args.sleep is not None)))
     if args.mujoco:
         import mujoco
 
         for name, path in args.mujoco:
             model = mujoco.MjModel.from_xml_path(path)
+            if args.sleep is not None:
+                model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+                model.opt.sleep_tolerance = args.sleep
             entries.append((name, lambda m=model: mujoco_mean(m)))
     if not entries or args.rounds < 1:
         raise SystemExit("nothing to run: give --gelenk and/or --mujoco entries and --rounds ≥ 1")
