@@ -933,16 +933,23 @@ mod tests {
         }
     }
 
-    #[test]
-    fn contact_rows_scaled_as_lanes_or_chains_give_the_delassus_matrix_of_a_dense_solve() {
+    /// The ragdoll at a random configuration (seeded), its mass matrix factored: the model, the
+    /// data holding the factor, M, and the generator for the rest of the test.
+    fn factored_ragdoll(seed: u64) -> (Model, Data, DMatrix<f64>, rand::rngs::StdRng) {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
         let model = load_file(path, &UrdfOptions::floating()).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let q = model.random_configuration(&mut rng);
         let mut data = Data::new(&model);
         crba(&model, &mut data, &q).unwrap();
         let m = data.mass_matrix.clone();
         factor_mass_matrix(&model, &mut data).unwrap();
+        (model, data, m, rng)
+    }
+
+    #[test]
+    fn contact_rows_scaled_as_lanes_or_chains_give_the_delassus_matrix_of_a_dense_solve() {
+        let (model, data, m, mut rng) = factored_ragdoll(3);
         let nv = model.nv();
         let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
         // A self-contact between two limbs, a contact with the world, and a row of another kind
@@ -975,28 +982,24 @@ mod tests {
             fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
         }
         let mut problem = ConstraintProblem::default();
-        let v_free = DVector::zeros(nv);
+        let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
         assemble_single(&builder, &model, &data, &v_free, &mut problem);
         let j = problem.jacobian.clone();
         let expected = &j * m.cholesky().unwrap().solve(&j.transpose());
         let scale = expected.abs().max();
         assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
+        // The bias J v_free, formed from the contacts' lanes, equals the dense product.
+        let velocity = &j * &v_free;
         for i in 0..builder.len() {
             let norm2 = problem.sparsity.row_norm2[i];
             assert!((norm2 - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
+            assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
         }
     }
 
     #[test]
     fn joint_rows_give_the_delassus_matrix_and_bias_of_a_dense_solve() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll.urdf");
-        let model = load_file(path, &UrdfOptions::floating()).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(5);
-        let q = model.random_configuration(&mut rng);
-        let mut data = Data::new(&model);
-        crba(&model, &mut data, &q).unwrap();
-        let m = data.mass_matrix.clone();
-        factor_mass_matrix(&model, &mut data).unwrap();
+        let (model, data, m, mut rng) = factored_ragdoll(5);
         let nv = model.nv();
         let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
         // Rows on the dofs of one joint (a ball joint's three friction rows, a limit on a
