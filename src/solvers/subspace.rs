@@ -24,7 +24,7 @@
 //! - every other row keeps its impulse (zero, or the bound it sits at).
 //!
 //! The reduced system (not symmetric when a contact slides) is solved by LU with partial
-//! pivoting of `K + εI` and a few refinement steps against K: a proximal-point iteration, so
+//! pivoting of `K + εI` and one refinement step against K: a proximal-point iteration, so
 //! that the singular K of a redundant contact set still yields a solution near PGS's iterate.
 //! That solution is followed as far as the active set allows (see [`subspace_step`]), the
 //! result is projected onto the feasible set and taken only if it lowers the exact residual
