@@ -947,6 +947,31 @@ mod tests {
         (model, data, m, rng)
     }
 
+    /// Assembles `builder`'s rows at a random free velocity and checks against the dense solve
+    /// with M: A = J M⁻¹ Jᵀ, each ‖W_i‖² = A_ii, and the bias J v_free (no targets). Returns the
+    /// problem for further checks.
+    fn assemble_against_dense(
+        builder: &ProblemBuilder,
+        model: &Model,
+        data: &Data,
+        m: &DMatrix<f64>,
+        rng: &mut rand::rngs::StdRng,
+    ) -> ConstraintProblem {
+        let mut problem = ConstraintProblem::default();
+        let v_free = DVector::from_fn(model.nv(), |_, _| rng.random_range(-1.0..1.0));
+        assemble_single(builder, model, data, &v_free, &mut problem);
+        let j = problem.jacobian.clone();
+        let expected = &j * m.clone().cholesky().unwrap().solve(&j.transpose());
+        let scale = expected.abs().max();
+        assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
+        let velocity = &j * &v_free;
+        for i in 0..builder.len() {
+            assert!((problem.sparsity.row_norm2[i] - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
+            assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
+        }
+        problem
+    }
+
     #[test]
     fn contact_rows_scaled_as_lanes_or_chains_give_the_delassus_matrix_of_a_dense_solve() {
         let (model, data, m, mut rng) = factored_ragdoll(3);
@@ -981,20 +1006,7 @@ mod tests {
             let (_, mut row) = builder.push_row(RowLaw::Unilateral, 0.0, 0.0, RowOrigin::Other);
             fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
         }
-        let mut problem = ConstraintProblem::default();
-        let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
-        assemble_single(&builder, &model, &data, &v_free, &mut problem);
-        let j = problem.jacobian.clone();
-        let expected = &j * m.cholesky().unwrap().solve(&j.transpose());
-        let scale = expected.abs().max();
-        assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
-        // The bias J v_free, formed from the contacts' lanes, equals the dense product.
-        let velocity = &j * &v_free;
-        for i in 0..builder.len() {
-            let norm2 = problem.sparsity.row_norm2[i];
-            assert!((norm2 - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
-            assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
-        }
+        assemble_against_dense(&builder, &model, &data, &m, &mut rng);
     }
 
     #[test]
@@ -1026,17 +1038,8 @@ mod tests {
             unit(&mut builder, &[(k, rng.random_range(-1.0..1.0))]);
         }
         unit(&mut builder, &[(0, 1.0)]);
-        let mut problem = ConstraintProblem::default();
-        let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
-        assemble_single(&builder, &model, &data, &v_free, &mut problem);
-        let j = problem.jacobian.clone();
-        let expected = &j * m.cholesky().unwrap().solve(&j.transpose());
-        let scale = expected.abs().max();
-        assert!((&problem.delassus - &expected).abs().max() < 1e-12 * scale);
-        let velocity = &j * &v_free;
+        let problem = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
         for i in 0..builder.len() {
-            assert!((problem.sparsity.row_norm2[i] - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
-            assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
             // W's rows are the dense solve's M⁻¹Jᵀ mapped back (their spans too).
             let dense = problem.minv_jt.column(i);
             let mut row = vec![0.0; nv];
