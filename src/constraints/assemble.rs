@@ -4,6 +4,7 @@
 
 use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin, RowSparsity};
 use crate::data::Data;
+use crate::math::Vec3;
 use crate::model::{Model, NO_DOF};
 use crate::solvers::SolverError;
 use nalgebra::{DMatrix, DVector};
@@ -35,14 +36,26 @@ pub struct ProblemBuilder {
     softness: Vec<f64>,
     laws: Vec<RowLaw>,
     contacts: Vec<ContactBlock>,
-    /// Per contact block, the velocity column of the last dof on each side's path to the root
-    /// (NO_DOF: no such side, or not known): a side's rows are non-zero only on that chain.
-    contact_tails: Vec<[usize; 2]>,
     origins: Vec<RowOrigin>,
-    /// Scratch of the contact rows ([`crate::collision::point_rates`]), kept between steps.
-    point_rates: Vec<(usize, crate::math::Vec3)>,
+    /// Point rates of the contacts' rows ([`crate::collision::point_rates`]: velocity column,
+    /// world velocity of the point per unit rate of that column's dof), each side of each
+    /// contact one path to the root, last dof first.
+    rates: Vec<(usize, Vec3)>,
+    /// Per row, the point rates it is formed from (None: a row of stored entries).
+    rate_rows: Vec<Option<RateRow>>,
     /// Friction model of the contacts.
     pub friction: FrictionModel,
+}
+
+/// A contact row given by its point rates instead of stored entries: its Jacobian row is
+/// `J = Σ (dᵀ u) e_c` over the rates `(c, u)` of both sides, so a contact's three rows cost the
+/// length of its bodies' paths to the root, not the width of their blocks.
+#[derive(Clone, Copy, Debug)]
+struct RateRow {
+    /// Ranges in [`ProblemBuilder::rates`] of the two sides' rates (empty: a static side).
+    sides: [(usize, usize); 2],
+    /// The row's world direction d (unit): the contact normal or a tangent.
+    direction: Vec3,
 }
 
 /// The Jacobian row being written ([`ProblemBuilder::push_row`]), indexed by velocity column
@@ -120,9 +133,9 @@ impl ProblemBuilder {
             softness: Vec::new(),
             laws: Vec::new(),
             contacts: Vec::new(),
-            contact_tails: Vec::new(),
             origins: Vec::new(),
-            point_rates: Vec::new(),
+            rates: Vec::new(),
+            rate_rows: Vec::new(),
             friction,
         }
     }
@@ -179,14 +192,11 @@ impl ProblemBuilder {
         self.laws.is_empty()
     }
 
-    /// The contact rows' scratch buffer (give it back with [`ProblemBuilder::put_point_rates`]).
-    pub(crate) fn take_point_rates(&mut self) -> Vec<(usize, crate::math::Vec3)> {
-        std::mem::take(&mut self.point_rates)
-    }
-
-    /// Returns the scratch buffer taken by [`ProblemBuilder::take_point_rates`].
-    pub(crate) fn put_point_rates(&mut self, rates: Vec<(usize, crate::math::Vec3)>) {
-        self.point_rates = rates;
+    /// The point rates of the contact rows: append a contact's sides to it with
+    /// [`crate::collision::point_rates`] (columns of this builder's velocities), then give their
+    /// ranges to [`ProblemBuilder::push_point_contact`].
+    pub fn rates_mut(&mut self) -> &mut Vec<(usize, Vec3)> {
+        &mut self.rates
     }
 
     /// Removes every row (keeps the buffers).
@@ -199,8 +209,9 @@ impl ProblemBuilder {
         self.softness.clear();
         self.laws.clear();
         self.contacts.clear();
-        self.contact_tails.clear();
         self.origins.clear();
+        self.rates.clear();
+        self.rate_rows.clear();
     }
 
     /// Appends a row and returns its index and its Jacobian row (all zero) to fill, indexed by
@@ -218,8 +229,57 @@ impl ProblemBuilder {
         self.targets.push(target);
         self.softness.push(softness);
         self.origins.push(origin);
+        self.rate_rows.push(None);
         self.row_segments.push(self.segment_block.len());
         (index, RowMut { builder: self })
+    }
+
+    /// Appends a contact's normal row and its two friction rows, along the world directions
+    /// `directions` (normal first, then the tangents), with the [`ContactBlock`] tying them;
+    /// returns the normal row's index. Their Jacobian rows are given by point rates: `sides`
+    /// are the ranges in [`ProblemBuilder::rates_mut`] of the two sides' rates, each one body's
+    /// path to the root as [`crate::collision::point_rates`] appends it (side b's with the sign
+    /// −1), empty for a static side. The normal row gets the regularisation `softness`, the
+    /// targets are zero ([`ProblemBuilder::set_target`]).
+    ///
+    /// Assembly works on the paths: a contact costs the length of its bodies' paths to the
+    /// root, not the width of their blocks. Panics if a range is out of bounds.
+    pub fn push_point_contact(
+        &mut self,
+        sides: [(usize, usize); 2],
+        directions: [Vec3; 3],
+        softness: f64,
+        origin: RowOrigin,
+        mu: f64,
+        mu2: f64,
+    ) -> usize {
+        for &(start, end) in &sides {
+            assert!(start <= end && end <= self.rates.len(), "point rates {start}..{end} out of range");
+        }
+        let (normal, contact) = (self.len(), self.contacts.len());
+        for (r, direction) in directions.into_iter().enumerate() {
+            let law = if r == 0 { RowLaw::Unilateral } else { RowLaw::Friction { contact } };
+            self.laws.push(law);
+            self.targets.push(0.0);
+            self.softness.push(if r == 0 { softness } else { 0.0 });
+            self.origins.push(origin);
+            self.rate_rows.push(Some(RateRow { sides, direction }));
+            self.row_segments.push(self.segment_block.len());
+        }
+        self.contacts.push(ContactBlock { normal, mu, mu2 });
+        normal
+    }
+
+    /// The entries of row `i` given by point rates: (column, value), a column once per side
+    /// whose path holds it (none for a row of stored entries).
+    fn rate_entries(&self, i: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let (sides, direction) = match self.rate_rows[i] {
+            Some(RateRow { sides, direction }) => (sides, direction),
+            None => ([(0, 0); 2], Vec3::zeros()),
+        };
+        sides.into_iter().flat_map(move |(start, end)| {
+            self.rates[start..end].iter().map(move |(c, u)| (*c, direction.dot(u)))
+        })
     }
 
     /// The segments of row `i`: (block, first column, values over the block's width).
@@ -233,167 +293,120 @@ impl ProblemBuilder {
         })
     }
 
-    /// Whether rows `i..i + count` touch the same blocks in the same order, at most
-    /// [`MAX_CONTACT_SEGMENTS`] of them (a contact's normal and friction rows, written from the
-    /// same point rates of its one or two bodies).
-    fn same_blocks(&self, i: usize, count: usize) -> bool {
-        if i + count > self.len() {
-            return false;
-        }
-        let range = |r: usize| {
-            self.row_segments[r]..self.row_segments.get(r + 1).copied().unwrap_or(self.segment_block.len())
-        };
-        let first = &self.segment_block[range(i)];
-        first.len() <= MAX_CONTACT_SEGMENTS
-            && (i + 1..i + count).all(|r| &self.segment_block[range(r)] == first)
-    }
-
-    /// Rows `i..i + 3` (a contact's normal and friction rows, over the same blocks) into `sp`:
-    /// W for the three at once, as three lanes of one walk of the ancestor stretches
-    /// ([`TreeFactor::scale_lanes`]) — the walk's overhead, not its products, dominates on the
-    /// short stretches of a ragdoll's paths. `jv` gets their J v_free.
+    /// Rows `i..i + 3`, a contact's normal and friction rows given by point rates
+    /// ([`ProblemBuilder::push_point_contact`]), into `sp`: W for the three at once, as three
+    /// lanes of one back substitution along each side's path ([`TreeFactor::scale_chain_lanes`];
+    /// along the union of both paths when the two sides share a block,
+    /// [`TreeFactor::scale_pattern_lanes`]). `jv` gets their J v_free.
     #[allow(clippy::too_many_arguments)]
-    fn push_contact_rows<'f>(
+    fn push_rate_contact<'f>(
         &self,
         i: usize,
-        contact: usize,
         factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
         v_free: &[f64],
         lanes: &mut Vec<[f64; 4]>,
+        pattern: &mut Vec<usize>,
+        stretches: &mut Vec<(usize, usize, usize)>,
         sp: &mut RowSparsity,
         jv: &mut [f64],
     ) {
-        // Lanes of every segment, one after the other; per segment the last non-zero entry of
-        // each row (None: the row is zero on that block).
+        let row = |r: usize| self.rate_rows[i + r].expect("a contact's rows are given by point rates");
+        let sides = row(0).sides;
+        let d = [row(0).direction, row(1).direction, row(2).direction];
+        let lane = |u: &Vec3| [d[0].dot(u), d[1].dot(u), d[2].dot(u), 0.0];
+        let (a, b) = (&self.rates[sides[0].0..sides[0].1], &self.rates[sides[1].0..sides[1].1]);
+        let block_of = |rates: &[(usize, Vec3)]| rates.first().map(|&(c, _)| self.block_of_col[c] as usize);
+        let none: &[(usize, Vec3)] = &[];
+        // One group per block the contact touches, in block order (W's runs then increase):
+        // one side's path, or both sides' paths when they share the block.
+        let groups = match (block_of(a), block_of(b)) {
+            (Some(x), Some(y)) if x == y => [Some((x, a, b)), None],
+            (Some(x), Some(y)) if y < x => [Some((y, b, none)), Some((x, a, none))],
+            (x, y) => [x.map(|x| (x, a, none)), y.map(|y| (y, b, none))],
+        };
         lanes.clear();
-        let mut lasts = [[None; 3]; MAX_CONTACT_SEGMENTS];
-        let mut shape = [(0usize, 0usize, None); MAX_CONTACT_SEGMENTS];
-        let mut count = 0;
-        // J v_free of the three rows, from the lanes before they are scaled (J's non-zeros are
-        // in them), four-wide, per segment with the partial sums of [`dot`] over its full width
-        // (the same value to the last bit as the full-width dot it replaces).
-        let mut velocity = [-0.0; 4];
-        let (mut s0, mut s1, mut s2) = (self.segments(i), self.segments(i + 1), self.segments(i + 2));
-        while let (Some((b, col, j0)), Some((_, _, j1)), Some((_, _, j2))) = (s0.next(), s1.next(), s2.next())
-        {
-            let offset = lanes.len();
-            // Along the chain only where it is shorter than the block (a free body's chain is
-            // its whole block: there the dense lanes are cheaper).
-            let chain = match (self.chain_tail_in_block(contact, b), factor_of(b)) {
-                (Some(tail), Some((factor, first_dof)))
-                    if factor.chain(first_dof + tail).len() + 1 < j0.len() =>
-                {
-                    Some((factor, first_dof, first_dof + tail))
+        let mut velocity = [0.0; 4];
+        let mut add_velocity = |x: &[f64; 4], v: f64| {
+            for (total, x) in velocity.iter_mut().zip(x) {
+                *total += x * v;
+            }
+        };
+        // Per group: its block and its stretches of consecutive columns (first column, first
+        // lane, length) in `stretches`, from which W's runs are copied row by row.
+        let mut shapes = [None, None];
+        stretches.clear();
+        let push_stretch =
+            |stretches: &mut Vec<(usize, usize, usize)>, from: usize, c: usize, lane: usize| {
+                let count = stretches.len();
+                match stretches.last_mut() {
+                    Some((col, _, len)) if count > from && *col + *len == c => *len += 1,
+                    _ => stretches.push((c, lane, 1)),
                 }
-                _ => None,
             };
-            if let Some((factor, first_dof, tail)) = chain {
-                // The side's one body: its rows are non-zero only on the chain of its path to
-                // the root, whose dofs' ancestors are prefixes of it. Gather the chain, scale it.
-                let path = factor.chain(tail);
-                let k_of = |p: usize| path.get(p).copied().unwrap_or(tail) - first_dof;
-                lanes.extend((0..=path.len()).map(|p| {
-                    let k = k_of(p);
-                    [j0[k], j1[k], j2[k], 0.0]
-                }));
-                let u = &mut lanes[offset..];
-                for (r, last) in lasts[count].iter_mut().enumerate() {
-                    *last = u.iter().rposition(|x| x[r] != 0.0).map(k_of);
+        for (shape, &(block, first, second)) in shapes.iter_mut().zip(groups.iter().flatten()) {
+            let (block_col, width) = self.blocks[block];
+            // A block that cannot move (no factor) has W = 0 there: no runs.
+            let factor = factor_of(block);
+            let (offset, from) = (lanes.len(), stretches.len());
+            if second.is_empty() {
+                // The path's rates run from its last dof up: reversed, the chain root first.
+                lanes.extend(first.iter().rev().map(|(_, u)| lane(u)));
+                for ((c, _), x) in first.iter().rev().zip(&lanes[offset..]) {
+                    add_velocity(x, v_free[*c]);
                 }
-                let mut partial = [[0.0; 4]; 4];
-                for (p, x) in u.iter().enumerate() {
-                    let k = k_of(p);
-                    let (v, sum) = (v_free[col + k], &mut partial[dot_partial(k, j0.len())]);
-                    for a in 0..4 {
-                        sum[a] += x[a] * v;
+                if let Some((factor, first_dof)) = factor {
+                    factor.scale_chain_lanes(first_dof + first[0].0 - block_col, &mut lanes[offset..]);
+                    for (p, (c, _)) in first.iter().rev().enumerate() {
+                        push_stretch(stretches, from, *c, offset + p);
                     }
-                }
-                add_partials(&mut velocity, &partial);
-                if lasts[count].iter().any(Option::is_some) {
-                    factor.scale_chain_lanes(tail, u);
+                    *shape = Some((block, from..stretches.len()));
                 }
             } else {
-                lanes.extend(j0.iter().zip(j1).zip(j2).map(|((a, b), c)| [*a, *b, *c, 0.0]));
-                lasts[count] = [last_nonzero(j0), last_nonzero(j1), last_nonzero(j2)];
-                let last = lasts[count].iter().flatten().max().copied();
-                if let Some(last) = last {
-                    let mut partial = [[0.0; 4]; 4];
-                    for (k, (x, v)) in lanes[offset..=offset + last].iter().zip(&v_free[col..]).enumerate() {
-                        let sum = &mut partial[dot_partial(k, j0.len())];
-                        for a in 0..4 {
-                            sum[a] += x[a] * v;
-                        }
+                // Lanes at the block's dofs: a stretch of consecutive columns is one of lanes.
+                lanes.resize(offset + width, [0.0; 4]);
+                let u = &mut lanes[offset..];
+                pattern.clear();
+                merge_paths(first, second, block_col, pattern);
+                for &(c, ref r) in first.iter().chain(second) {
+                    let x = lane(r);
+                    for (u, x) in u[c - block_col].iter_mut().zip(x) {
+                        *u += x;
                     }
-                    add_partials(&mut velocity, &partial);
                 }
-                if let (Some(last), Some((factor, first_dof))) = (last, factor_of(b)) {
-                    factor.scale_lanes(first_dof, last, &mut lanes[offset..]);
-                } else {
-                    lanes[offset..].fill([0.0; 4]);
+                for &k in pattern.iter() {
+                    add_velocity(&u[k], v_free[block_col + k]);
+                }
+                if let Some((factor, first_dof)) = factor {
+                    factor.scale_pattern_lanes(first_dof, pattern, u);
+                    for &k in pattern.iter().rev() {
+                        push_stretch(stretches, from, block_col + k, offset + k);
+                    }
+                    *shape = Some((block, from..stretches.len()));
                 }
             }
-            shape[count] = (b, offset, chain);
-            count += 1;
         }
         jv[i..i + 3].copy_from_slice(&velocity[..3]);
         for r in 0..3 {
             let mut norm2 = 0.0;
-            for s in 0..count {
-                let Some(last) = lasts[s][r] else { continue };
-                let (b, offset, chain) = shape[s];
-                let width = self.blocks[b].1;
+            for (block, range) in shapes.iter().flatten() {
                 let start = sp.w_values.len();
-                let lo = if let Some((factor, first_dof, tail)) = chain {
-                    // Zeros off the chain, the chain's entries scattered to their columns.
-                    sp.w_values.resize(start + width, 0.0);
-                    let path = factor.chain(tail);
-                    let (u, u_tail) = lanes[offset..=offset + path.len()].split_at(path.len());
-                    let w = &mut sp.w_values[start..start + width];
-                    for (&dof, x) in path.iter().zip(u) {
-                        w[dof - first_dof] = x[r];
-                    }
-                    w[tail - first_dof] = u_tail[0][r];
-                    // The chain's columns increase (ancestors first): its first non-zero is
-                    // the segment's first.
-                    let first = u.iter().chain(u_tail).position(|x| x[r] != 0.0);
-                    first.map(|p| path.get(p).copied().unwrap_or(tail) - first_dof)
-                } else {
-                    sp.w_values.extend(lanes[offset..offset + width].iter().map(|u| u[r]));
-                    sp.w_values[start..=start + last].iter().position(|x| *x != 0.0)
-                };
-                let span = lo.map_or((0, 0), |lo| (lo, last + 1));
-                norm2 += push_segment(sp, b, start, span);
+                for &(col, lane, len) in &stretches[range.clone()] {
+                    sp.runs.push((col, sp.w_values.len(), len));
+                    sp.w_values.extend(lanes[lane..lane + len].iter().map(|x| x[r]));
+                }
+                let w = &sp.w_values[start..];
+                norm2 += dot(w, w);
+                sp.blocks_of_row.push(*block);
+                sp.entry_run_start.push(sp.runs.len());
             }
-            sp.row_norm2.push(norm2);
-            sp.run_start.push(sp.runs.len());
-            sp.row_start.push(sp.blocks_of_row.len());
+            finish_row(sp, norm2);
         }
     }
 
-    /// The column, within block `b`, of the one chain tail of contact `contact` in that block
-    /// (None: no tail known there, or both sides' chains are in it — a union of two paths).
-    fn chain_tail_in_block(&self, contact: usize, b: usize) -> Option<usize> {
-        let [t, u] = *self.contact_tails.get(contact)?;
-        let in_block = |t: usize| t != NO_DOF && self.block_of_col[t] as usize == b;
-        match (in_block(t), in_block(u)) {
-            (true, false) => Some(t - self.blocks[b].0),
-            (false, true) => Some(u - self.blocks[b].0),
-            _ => None,
-        }
-    }
-
-    /// Registers a contact block whose normal row is `normal` (the two friction rows follow it).
+    /// Registers a contact block whose normal row is `normal` (the two friction rows follow it),
+    /// for rows pushed with [`ProblemBuilder::push_row`].
     pub fn push_contact_block(&mut self, block: ContactBlock) -> usize {
-        self.push_contact_block_on_chains(block, [NO_DOF; 2])
-    }
-
-    /// [`Self::push_contact_block`] for a contact whose rows are non-zero only on the paths to
-    /// the root of its sides' bodies: `tails` holds the velocity column of the last dof of each
-    /// side's path (NO_DOF: a static side). Assembly then scales the rows along those chains
-    /// only ([`TreeFactor::scale_chain_lanes`]).
-    pub(crate) fn push_contact_block_on_chains(&mut self, block: ContactBlock, tails: [usize; 2]) -> usize {
         self.contacts.push(block);
-        self.contact_tails.push(tails);
         self.contacts.len() - 1
     }
 
@@ -414,7 +427,9 @@ impl ProblemBuilder {
 
     /// J_i · v for row `i` and a velocity `v` of `nv` entries (e.g. m/s for a contact normal).
     pub fn row_dot(&self, i: usize, v: &[f64]) -> f64 {
-        self.segments(i).map(|(_, first, values)| dot(values, &v[first..first + values.len()])).sum()
+        let stored: f64 =
+            self.segments(i).map(|(_, first, values)| dot(values, &v[first..first + values.len()])).sum();
+        stored + self.rate_entries(i).map(|(c, x)| x * v[c]).sum::<f64>()
     }
 
     /// Writes the dense Jacobian row `i` (`nv` entries) into `out`.
@@ -424,6 +439,9 @@ impl ProblemBuilder {
             for (o, v) in out[first..first + values.len()].iter_mut().zip(values) {
                 *o += v;
             }
+        }
+        for (c, x) in self.rate_entries(i) {
+            out[c] += x;
         }
     }
 
@@ -474,24 +492,27 @@ impl ProblemBuilder {
             problem.bias = DVector::zeros(n);
             problem.target = DVector::zeros(n);
         }
-        // Which blocks each row touches, with the row's J, W and M⁻¹Jᵀ entries on each.
+        // Which blocks each row touches, with the row's W on each, as runs.
         let sp = &mut problem.sparsity;
         sp.nv = nv;
         sp.blocks.clear();
         sp.blocks.extend_from_slice(blocks);
         sp.row_start.clear();
         sp.blocks_of_row.clear();
-        sp.segment_start.clear();
-        sp.segment_span.clear();
+        sp.entry_run_start.clear();
         sp.w_values.clear();
         sp.row_norm2.clear();
         sp.runs.clear();
         sp.run_start.clear();
         sp.run_start.push(0);
         sp.row_start.push(0);
+        sp.entry_run_start.push(0);
         // W changes: a solver's kept Wᵀλ of the last problem is void.
         problem.kept_lambda.0.get_mut().clear();
         let mut lanes = std::mem::take(problem.lanes.0.get_mut());
+        let mut pattern = std::mem::take(problem.pattern.0.get_mut());
+        let mut stretches = std::mem::take(problem.stretches.0.get_mut());
+        let mut scaled = std::mem::take(problem.scratch.0.get_mut());
         let sp = &mut problem.sparsity;
         // J v_free per row, formed with the rows (the bias below).
         let jv = problem.bias.as_mut_slice();
@@ -501,49 +522,65 @@ impl ProblemBuilder {
             while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
                 next_contact += 1;
             }
-            if self.contacts.get(next_contact).is_some_and(|c| c.normal == i) && self.same_blocks(i, 3) {
-                self.push_contact_rows(i, next_contact, &factor_of, v_free, &mut lanes, sp, jv);
+            if self.rate_rows[i].is_some() {
+                debug_assert_eq!(self.contacts.get(next_contact).map(|c| c.normal), Some(i));
+                self.push_rate_contact(
+                    i,
+                    &factor_of,
+                    v_free,
+                    &mut lanes,
+                    &mut pattern,
+                    &mut stretches,
+                    sp,
+                    jv,
+                );
                 i += 3;
                 continue;
             }
-            let (mut norm2, mut velocity) = (0.0, -0.0);
+            let (mut norm2, mut velocity) = (0.0, 0.0);
             for (b, col, segment) in self.segments(i) {
                 let Some(last) = last_nonzero(segment) else { continue };
                 velocity += dot(segment, &v_free[col..col + segment.len()]);
-                let start = sp.w_values.len();
-                sp.w_values.extend_from_slice(segment);
-                let span = match factor_of(b) {
-                    Some((factor, first_dof)) => factor.scale_row(first_dof, last, &mut sp.w_values[start..]),
-                    None => {
-                        sp.w_values[start..].fill(0.0);
-                        (0, 0)
-                    }
-                };
-                norm2 += push_segment(sp, b, start, span);
+                let Some((factor, first_dof)) = factor_of(b) else { continue };
+                scaled.clear();
+                scaled.extend_from_slice(segment);
+                let span = factor.scale_row(first_dof, last, &mut scaled);
+                let runs = sp.runs.len();
+                norm2 += push_dense_runs(sp, col, &scaled, span);
+                if sp.runs.len() > runs {
+                    sp.blocks_of_row.push(b);
+                    sp.entry_run_start.push(sp.runs.len());
+                }
             }
-            sp.row_norm2.push(norm2);
-            sp.run_start.push(sp.runs.len());
-            sp.row_start.push(sp.blocks_of_row.len());
+            finish_row(sp, norm2);
             jv[i] = velocity;
             i += 1;
         }
         *problem.lanes.0.get_mut() = lanes;
+        *problem.pattern.0.get_mut() = pattern;
+        *problem.stretches.0.get_mut() = stretches;
+        *problem.scratch.0.get_mut() = scaled;
         // Dense J and M⁻¹Jᵀ (for export and inspection), if asked.
         if dense {
+            problem.jacobian.fill(0.0);
             problem.minv_jt.fill(0.0);
             for i in 0..n {
                 for (_, first, values) in self.segments(i) {
                     for (k, v) in values.iter().enumerate() {
-                        problem.jacobian[(i, first + k)] = *v;
+                        problem.jacobian[(i, first + k)] += *v;
                     }
+                }
+                for (c, x) in self.rate_entries(i) {
+                    problem.jacobian[(i, c)] += x;
                 }
                 let sp = &problem.sparsity;
                 for e in sp.row_start[i]..sp.row_start[i + 1] {
                     let (col, width) = sp.blocks[sp.blocks_of_row[e]];
-                    let (start, (lo, hi)) = (sp.segment_start[e], sp.segment_span[e]);
                     // Column i of the column-major nv × n matrix, on the block's rows.
                     let x = &mut problem.minv_jt.as_mut_slice()[i * nv + col..i * nv + col + width];
-                    x[lo..hi].copy_from_slice(&sp.w_values[start + lo..start + hi]);
+                    for &(c, start, len) in sp.entry_runs(e) {
+                        x[c - col..c - col + len].copy_from_slice(&sp.w_values[start..start + len]);
+                    }
                     if let Some((factor, first_dof)) = factor_of(sp.blocks_of_row[e]) {
                         factor.unscale_solve(first_dof, x);
                     }
@@ -578,26 +615,47 @@ impl ProblemBuilder {
     }
 }
 
-/// The partial sum of [`dot`] over `width` entries that entry `k` goes to: `k mod 4` in the
-/// whole chunks of four, the first one in the remainder.
-fn dot_partial(k: usize, width: usize) -> usize {
-    if k < width - width % 4 {
-        k % 4
-    } else {
-        0
+/// Appends block-local dofs of the union of two paths to the root to `pattern`, decreasing and
+/// each once: the columns of `first` and `second` (point rates, each path from its last dof
+/// up, so decreasing) less `block_col`.
+fn merge_paths(
+    first: &[(usize, Vec3)],
+    second: &[(usize, Vec3)],
+    block_col: usize,
+    pattern: &mut Vec<usize>,
+) {
+    let (mut x, mut y) = (first.iter().map(|r| r.0).peekable(), second.iter().map(|r| r.0).peekable());
+    loop {
+        let next = match (x.peek(), y.peek()) {
+            (Some(&a), Some(&b)) => {
+                if a >= b {
+                    x.next();
+                }
+                if b >= a {
+                    y.next();
+                }
+                a.max(b)
+            }
+            (Some(&a), None) => {
+                x.next();
+                a
+            }
+            (None, Some(&b)) => {
+                y.next();
+                b
+            }
+            (None, None) => return,
+        };
+        pattern.push(next - block_col);
     }
 }
 
-/// Adds, per lane, the segment's dot product from its four partial sums (`partial[s][lane]`),
-/// combined as [`dot`] combines them.
-fn add_partials(total: &mut [f64; 4], partial: &[[f64; 4]; 4]) {
-    for (a, total) in total.iter_mut().enumerate() {
-        *total += (partial[0][a] + partial[1][a]) + (partial[2][a] + partial[3][a]);
-    }
+/// Ends the row being written: its ‖W_i‖² and where its runs and blocks end.
+fn finish_row(sp: &mut RowSparsity, norm2: f64) {
+    sp.row_norm2.push(norm2);
+    sp.run_start.push(sp.runs.len());
+    sp.row_start.push(sp.blocks_of_row.len());
 }
-
-/// Most blocks a contact's rows touch (its two sides' multibodies).
-const MAX_CONTACT_SEGMENTS: usize = 2;
 
 /// The index of the last non-zero entry of a row segment (None: all zero). A branch-free OR
 /// over the bits (±0 ignored) first, which vectorizes: many segments are all zero.
@@ -606,18 +664,6 @@ fn last_nonzero(segment: &[f64]) -> Option<usize> {
         return None;
     }
     segment.iter().rposition(|x| *x != 0.0)
-}
-
-/// Records a scaled row segment of block `b` (W's entries at `sp.w_values[start..]`, zero
-/// outside `span`) as the next segment of the row being written, with its runs; returns its
-/// contribution to ‖W_i‖².
-fn push_segment(sp: &mut RowSparsity, b: usize, start: usize, span: (usize, usize)) -> f64 {
-    sp.blocks_of_row.push(b);
-    sp.segment_start.push(start);
-    sp.segment_span.push(span);
-    push_runs(&mut sp.runs, &sp.w_values, sp.blocks[b].0, start, span);
-    let w = &sp.w_values[start + span.0..start + span.1];
-    dot(w, w)
 }
 
 /// Builds the problem of a single multibody whose M(q) [`crate::algorithms::factor_mass_matrix`]
@@ -746,35 +792,30 @@ impl<'a> TreeFactor<'a> {
         (lo, last + 1)
     }
 
-    /// [`Self::scale_row`] for up to four rows of the same support at once, held as the lanes of
-    /// `u` (lane `a` of `u[k]` is row a's entry k): one walk of the ancestor stretches with a
-    /// four-wide update per entry. `last` is the last entry non-zero in any lane; the lanes are
-    /// scaled by D^{-1/2} up to it.
-    fn scale_lanes(&self, first_dof: usize, last: usize, u: &mut [[f64; 4]]) {
-        for k in (0..=last).rev() {
-            let uk = u[k];
-            let row = first_dof + k;
-            if uk == [0.0; 4] || !self.coupled[row] {
+    /// [`Self::scale_chain_lanes`] for rows non-zero on a union of paths to the root (a contact
+    /// between two bodies of one block): `u` holds the lanes at the block's dofs (dof
+    /// `first_dof + k` at `u[k]`), zero outside `pattern`, the union's block-local dofs in
+    /// decreasing order (every dof's ancestors are in it). Right-looking as there: a dof's
+    /// lanes are final once its descendants, which come before it, have been subtracted.
+    fn scale_pattern_lanes(&self, first_dof: usize, pattern: &[usize], u: &mut [[f64; 4]]) {
+        for &k in pattern {
+            let dof = first_dof + k;
+            if !self.coupled[dof] {
                 continue;
             }
-            let (mut start, mut end) = (self.run_start[row], row);
-            loop {
-                for (w, l) in
-                    u[start - first_dof..end - first_dof].iter_mut().zip(self.stretch(row, start, end))
-                {
-                    for a in 0..4 {
-                        w[a] -= l * uk[a];
-                    }
+            let uk = u[k];
+            let path = self.chain(dof);
+            let row = &self.packed[self.dof_path_start[dof] + dof..][..path.len()];
+            for (&j, &l) in path.iter().zip(row) {
+                let w = &mut u[j - first_dof];
+                for a in 0..4 {
+                    w[a] -= l * uk[a];
                 }
-                let next = self.dof_parent[start];
-                if next == NO_DOF {
-                    break;
-                }
-                (start, end) = (self.run_start[next], next + 1);
             }
         }
-        for (w, s) in u[..=last].iter_mut().zip(&self.inv_sqrt_d[first_dof..]) {
-            for x in w.iter_mut() {
+        for &k in pattern {
+            let s = self.inv_sqrt_d[first_dof + k];
+            for x in u[k].iter_mut() {
                 *x *= s;
             }
         }
@@ -806,28 +847,22 @@ impl<'a> TreeFactor<'a> {
     }
 }
 
-/// Appends the runs of non-zero entries of one row segment of W (values at `w[start..]`, the
-/// block's first column `col`, non-zero only within `span`). Gaps of fewer than four zeros are
+/// Appends W's row segment on one block (`w`, the block's first column `col`, zero outside
+/// `span`) as runs of its non-zero entries, and returns Σ w². Gaps of fewer than four zeros are
 /// kept inside a run: skipping them would cost more in loop overhead than the products.
-fn push_runs(
-    runs: &mut Vec<(usize, usize, usize)>,
-    w: &[f64],
-    col: usize,
-    start: usize,
-    span: (usize, usize),
-) {
+fn push_dense_runs(sp: &mut RowSparsity, col: usize, w: &[f64], span: (usize, usize)) -> f64 {
     const MIN_GAP: usize = 4;
-    let segment = &w[start..start + span.1];
     let mut k = span.0;
+    let mut norm2 = 0.0;
     while k < span.1 {
-        if segment[k] == 0.0 {
+        if w[k] == 0.0 {
             k += 1;
             continue;
         }
         let (first, mut end, mut zeros) = (k, k + 1, 0);
         k += 1;
         while k < span.1 && zeros < MIN_GAP {
-            if segment[k] == 0.0 {
+            if w[k] == 0.0 {
                 zeros += 1;
             } else {
                 zeros = 0;
@@ -835,8 +870,12 @@ fn push_runs(
             }
             k += 1;
         }
-        runs.push((col + first, start + first, end - first));
+        let values = &w[first..end];
+        sp.runs.push((col + first, sp.w_values.len(), values.len()));
+        sp.w_values.extend_from_slice(values);
+        norm2 += dot(values, values);
     }
+    norm2
 }
 
 /// The rows touching each block (`rows_of_block`, `block_start`) with their segments and spans,
@@ -853,17 +892,14 @@ pub(crate) fn index_rows_by_block(sp: &mut RowSparsity) {
     }
     sp.rows_of_block.clear();
     sp.rows_of_block.resize(sp.blocks_of_row.len(), 0);
-    sp.segment_of_block_row.clear();
-    sp.segment_of_block_row.resize(sp.blocks_of_row.len(), 0);
-    sp.span_of_block_row.clear();
-    sp.span_of_block_row.resize(sp.blocks_of_row.len(), (0, 0));
+    sp.entry_of_block_row.clear();
+    sp.entry_of_block_row.resize(sp.blocks_of_row.len(), 0);
     for i in 0..sp.row_start.len().saturating_sub(1) {
         for e in sp.row_start[i]..sp.row_start[i + 1] {
             let b = sp.blocks_of_row[e];
             // block_start[b] is used as the fill cursor, then restored below.
             sp.rows_of_block[sp.block_start[b]] = i;
-            sp.segment_of_block_row[sp.block_start[b]] = sp.segment_start[e];
-            sp.span_of_block_row[sp.block_start[b]] = sp.segment_span[e];
+            sp.entry_of_block_row[sp.block_start[b]] = e;
             sp.block_start[b] += 1;
         }
     }
@@ -874,21 +910,16 @@ pub(crate) fn index_rows_by_block(sp: &mut RowSparsity) {
 }
 
 /// A = W Wᵀ into `a` (n × n): per block, over the pairs of rows touching it (other blocks give
-/// zero), each dot product over the span where both rows' W can be non-zero.
+/// zero), each dot product over the columns where both rows' runs overlap.
 pub(crate) fn delassus_from_w(sp: &RowSparsity, a: &mut DMatrix<f64>) {
     a.fill(0.0);
     for b in 0..sp.blocks.len() {
         let range = sp.block_start[b]..sp.block_start[b + 1];
         let rows = &sp.rows_of_block[range.clone()];
-        let segments = &sp.segment_of_block_row[range.clone()];
-        let spans = &sp.span_of_block_row[range];
-        for (p, ((&i, &si), &(lo_i, hi_i))) in rows.iter().zip(segments).zip(spans).enumerate() {
-            for ((&j, &sj), &(lo_j, hi_j)) in rows[..=p].iter().zip(segments).zip(spans) {
-                let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
-                if lo >= hi {
-                    continue;
-                }
-                let x = dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
+        let entries = &sp.entry_of_block_row[range];
+        for (p, (&i, &ei)) in rows.iter().zip(entries).enumerate() {
+            for (&j, &ej) in rows[..=p].iter().zip(entries) {
+                let x = runs_dot(sp, sp.entry_runs(ei), sp.entry_runs(ej));
                 a[(i, j)] += x;
                 if i != j {
                     a[(j, i)] += x;
@@ -896,6 +927,25 @@ pub(crate) fn delassus_from_w(sp: &RowSparsity, a: &mut DMatrix<f64>) {
             }
         }
     }
+}
+
+/// W_i · W_j over two rows' runs on one block (each in increasing columns): a dot product over
+/// each overlap of a run of one with a run of the other.
+pub(crate) fn runs_dot(sp: &RowSparsity, a: &[(usize, usize, usize)], b: &[(usize, usize, usize)]) -> f64 {
+    let (mut p, mut q, mut total) = (0, 0, 0.0);
+    while p < a.len() && q < b.len() {
+        let ((ca, sa, la), (cb, sb, lb)) = (a[p], b[q]);
+        let (lo, hi) = (ca.max(cb), (ca + la).min(cb + lb));
+        if lo < hi {
+            total += dot(&sp.w_values[sa + lo - ca..sa + hi - ca], &sp.w_values[sb + lo - cb..sb + hi - cb]);
+        }
+        if ca + la <= cb + lb {
+            p += 1;
+        } else {
+            q += 1;
+        }
+    }
+    total
 }
 
 /// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
@@ -972,41 +1022,80 @@ mod tests {
         problem
     }
 
+    /// Appends random point rates along the path of `body` to the root, as
+    /// [`crate::collision::point_rates`] does (last dof first), and returns their range; the
+    /// rate of dof `zero_at` (if on the path) is zero.
+    fn random_rates(
+        builder: &mut ProblemBuilder,
+        model: &Model,
+        body: usize,
+        zero_at: usize,
+        rng: &mut impl Rng,
+    ) -> (usize, usize) {
+        let start = builder.rates_mut().len();
+        let mut k = last_dof_of(model, body);
+        while k != NO_DOF {
+            let u = Vec3::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            builder.rates_mut().push((k, if k == zero_at { Vec3::zeros() } else { u }));
+            k = model.dof_parent[k];
+        }
+        (start, builder.rates_mut().len())
+    }
+
     #[test]
-    fn contact_rows_scaled_as_lanes_or_chains_give_the_delassus_matrix_of_a_dense_solve() {
+    fn contact_rows_from_point_rates_give_the_delassus_matrix_and_bias_of_a_dense_solve() {
         let (model, data, m, mut rng) = factored_ragdoll(3);
         let nv = model.nv();
         let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
-        // A self-contact between two limbs, a contact with the world, and a row of another kind
-        // between them (scaled alone), with a friction row whose entries are zero on part of
-        // the path.
+        // A self-contact between two limbs (two paths in one block, scaled along their union),
+        // a contact with the world (one path, scaled along its chain) whose rates are zero at a
+        // dof in the middle of the path, and between them a row of stored entries and a contact
+        // of stored rows (scaled row by row).
         let last = model.nbodies() - 1;
+        let middle = model.dof_path[model.dof_path_start[last_dof_of(&model, last / 3)] + 4];
         for (a, b) in [(last, Some(last / 2)), (last / 3, None)] {
-            let normal = builder.len();
-            for r in 0..3 {
-                let law = if r == 0 {
-                    RowLaw::Unilateral
-                } else {
-                    RowLaw::Friction { contact: builder.contact_count() }
-                };
-                let (_, mut row) = builder.push_row(law, 0.0, 0.0, RowOrigin::Other);
-                fill_path(&model, a, 1.0, &mut rng, &mut row);
-                if let Some(b) = b {
-                    fill_path(&model, b, -1.0, &mut rng, &mut row);
-                }
-                if r == 2 {
-                    row[0] = 0.0;
-                }
-            }
-            // Both sides' chains recorded, as `add_contact_rows_with` does: the contact with the
-            // world is scaled along its chain, the self-contact (two chains in one block) by
-            // the walk of ancestor stretches.
-            let tails = [last_dof_of(&model, a), b.map_or(NO_DOF, |b| last_dof_of(&model, b))];
-            builder.push_contact_block_on_chains(ContactBlock { normal, mu: 0.5, mu2: 0.5 }, tails);
+            let side_a = random_rates(&mut builder, &model, a, middle, &mut rng);
+            let side_b = match b {
+                Some(b) => random_rates(&mut builder, &model, b, NO_DOF, &mut rng),
+                None => (side_a.1, side_a.1),
+            };
+            let directions = [0; 3].map(|_| Vec3::from_fn(|_, _| rng.random_range(-1.0..1.0)));
+            let normal =
+                builder.push_point_contact([side_a, side_b], directions, 0.0, RowOrigin::Other, 0.5, 0.5);
+            assert_eq!(builder.contacts[builder.contact_count() - 1].normal, normal);
             let (_, mut row) = builder.push_row(RowLaw::Unilateral, 0.0, 0.0, RowOrigin::Other);
             fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
         }
-        assemble_against_dense(&builder, &model, &data, &m, &mut rng);
+        let normal = builder.len();
+        for r in 0..3 {
+            let law = if r == 0 {
+                RowLaw::Unilateral
+            } else {
+                RowLaw::Friction { contact: builder.contact_count() }
+            };
+            let (_, mut row) = builder.push_row(law, 0.0, 0.0, RowOrigin::Other);
+            fill_path(&model, last, 1.0, &mut rng, &mut row);
+        }
+        builder.push_contact_block(ContactBlock { normal, mu: 0.5, mu2: 0.5 });
+        let problem = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
+        // The rows' entries are the point rates' along each direction (both sides summed).
+        for i in [0, 1, 2, 4, 5, 6] {
+            let mut expected = vec![0.0; nv];
+            let RateRow { sides, direction } = builder.rate_rows[i].unwrap();
+            for (start, end) in sides {
+                for (c, u) in &builder.rates[start..end] {
+                    expected[*c] += direction.dot(u);
+                }
+            }
+            for (k, expected) in expected.iter().enumerate() {
+                assert_eq!(problem.jacobian[(i, k)], *expected, "row {i}, dof {k}");
+            }
+        }
+        // The rows given by rates store only their paths' (or the union's) entries of W.
+        let stored: usize =
+            (0..3).map(|i| problem.sparsity.row_spans(i).map(|(_, w)| w.len()).sum::<usize>()).sum();
+        let union = (0..nv).filter(|&k| problem.jacobian.row(0)[k] != 0.0).count();
+        assert!(stored <= 3 * union, "{stored} entries stored for 3 rows on {union} dofs");
     }
 
     #[test]

@@ -3,10 +3,10 @@
 //! bounce_vel), position stabilisation (ODE's soft_erp with a surface layer) and speculative
 //! approach for contacts still apart, and softness (ODE's soft_cfm).
 
-use super::{ContactBlock, ProblemBuilder, RowLaw, RowOrigin};
-use crate::collision::{add_point_rates_row, point_rates, tangents, Attachment, Contact};
+use super::{ProblemBuilder, RowOrigin};
+use crate::collision::{point_rates, tangents, Attachment, Contact};
 use crate::data::Data;
-use crate::model::{Model, NO_DOF};
+use crate::model::Model;
 use nalgebra::DVector;
 
 /// Contact parameters of a pair of surfaces (ODE's `dSurfaceParameters`, in SI units).
@@ -117,48 +117,37 @@ pub fn add_contact_rows_with<'a>(
     mut parameters: impl FnMut(&Contact) -> ContactParameters,
     mut keep: impl FnMut(usize, &Contact) -> bool,
 ) {
-    let mut rates = builder.take_point_rates();
     for (i, contact) in contacts.iter().enumerate() {
         if !keep(i, contact) {
             continue;
         }
-        let origin = RowOrigin::Contact(first_index + i);
         let (t1, t2) = tangents(&contact.normal);
-        rates.clear();
-        let mut tails = [NO_DOF; 2];
-        for (tail, (side, point, sign)) in tails
+        let mut sides = [(0, 0); 2];
+        for (range, (side, point, sign)) in sides
             .iter_mut()
             .zip([(contact.body_a, contact.point_a, 1.0), (contact.body_b, contact.point_b, -1.0)])
         {
+            let start = builder.rates_mut().len();
             if let Attachment::Body { multibody, body } = side {
                 let (model, data, col) = system(multibody);
-                let before = rates.len();
-                point_rates(model, data, body, &point, sign, col, &mut rates);
-                // point_rates walks the body's path from its last dof up.
-                if let Some(&(last, _)) = rates.get(before) {
-                    *tail = last;
-                }
+                point_rates(model, data, body, &point, sign, col, builder.rates_mut());
             }
+            *range = (start, builder.rates_mut().len());
         }
         let p = parameters(contact);
-        let normal_row = builder.len();
-        for (r, direction) in [contact.normal, t1, t2].iter().enumerate() {
-            let law = if r == 0 {
-                RowLaw::Unilateral
-            } else {
-                RowLaw::Friction { contact: builder.contact_count() }
-            };
-            let softness = if r == 0 { p.cfm / h } else { 0.0 };
-            let (_, mut row) = builder.push_row(law, 0.0, softness, origin);
-            add_point_rates_row(&rates, direction, &mut row);
-        }
+        let origin = RowOrigin::Contact(first_index + i);
+        let normal_row = builder.push_point_contact(
+            sides,
+            [contact.normal, t1, t2],
+            p.cfm / h,
+            origin,
+            p.mu,
+            p.mu2.unwrap_or(p.mu),
+        );
         let approach = builder.row_dot(normal_row, v.as_slice());
         let target = p.target_normal_velocity(contact.distance, approach, h);
         builder.set_target(normal_row, target);
-        let block = ContactBlock { normal: normal_row, mu: p.mu, mu2: p.mu2.unwrap_or(p.mu) };
-        builder.push_contact_block_on_chains(block, tails);
     }
-    builder.put_point_rates(rates);
 }
 
 /// Which contacts still apart get rows (speculative contacts). The collision margin reports

@@ -144,6 +144,10 @@ pub struct ConstraintProblem {
     pub(crate) scratch: Scratch,
     /// A contact's three Jacobian rows as lanes during assembly (reused).
     pub(crate) lanes: Scratch<[f64; 4]>,
+    /// The dofs of a contact's two paths during assembly (reused).
+    pub(crate) pattern: Scratch<usize>,
+    /// A contact's runs of consecutive columns during assembly (reused).
+    pub(crate) stretches: Scratch<(usize, usize, usize)>,
     /// Impulses λ a solver left with the Wᵀλ it kept for them ([`Self::keep_impulse_sum`]):
     /// [`Self::apply_impulses`] with the same λ starts from that sum.
     pub(crate) kept_lambda: Scratch,
@@ -166,30 +170,28 @@ pub struct RowSparsity {
     pub row_start: Vec<usize>,
     /// Block indices touched by each row, concatenated.
     pub blocks_of_row: Vec<usize>,
-    /// For each (row, touched block) entry of `blocks_of_row`, the offset of its segment (block
-    /// width entries) in `w_values`.
-    pub segment_start: Vec<usize>,
-    /// W = J L⁻¹ D^{-1/2}'s entries of each (row, block) segment (M = Lᵀ D L, A = W Wᵀ).
+    /// For each (row, touched block) entry of `blocks_of_row`, where its runs start in `runs`
+    /// (one per entry plus one: entry e's runs are `runs[entry_run_start[e]..entry_run_start[e + 1]]`).
+    pub entry_run_start: Vec<usize>,
+    /// W = J L⁻¹ D^{-1/2}'s entries (M = Lᵀ D L, A = W Wᵀ), run after run (see `runs`).
     pub w_values: Vec<f64>,
-    /// For each (row, block) entry, the span [lo, hi) of the segment outside which W is zero.
-    pub segment_span: Vec<(usize, usize)>,
     /// Rows touching each block: `rows_of_block[block_start[b]..block_start[b + 1]]`. This
     /// per-block index (with the two fields after it) is filled only when A is formed; a
     /// matrix-free problem leaves `block_start` empty.
     pub rows_of_block: Vec<usize>,
     /// Offsets into `rows_of_block`, one per block plus one.
     pub block_start: Vec<usize>,
-    /// For each entry of `rows_of_block`, the offset of that row's segment on that block.
-    pub segment_of_block_row: Vec<usize>,
-    /// For each entry of `rows_of_block`, the span of W of that row's segment on that block.
-    pub span_of_block_row: Vec<(usize, usize)>,
+    /// For each entry of `rows_of_block`, that row's entry (index into `blocks_of_row`) on
+    /// that block.
+    pub entry_of_block_row: Vec<usize>,
     /// ‖W_i‖² = A_ii per row (1/kg or 1/(kg·m²)), the diagonal every solver and the residuals
     /// need; empty when the problem was not built from segments.
     pub row_norm2: Vec<f64>,
     /// Runs of non-zero entries of W's rows: (first column in the stacked velocities, offset in
-    /// `w_values`, length). A row of W is non-zero only on its bodies' paths to the root, which
-    /// in a branched tree (a ragdoll's foot: pelvis, hip, knee, ankle) is a few runs of a much
-    /// wider span; row i's runs are `runs[run_start[i]..run_start[i + 1]]`.
+    /// `w_values`, length), in increasing columns within each (row, block) entry. A row of W is
+    /// non-zero only on its bodies' paths to the root, which in a branched tree (a ragdoll's
+    /// foot: pelvis, hip, knee, ankle) is a few runs of a much wider span; only the runs'
+    /// entries are stored. Row i's runs are `runs[run_start[i]..run_start[i + 1]]`.
     pub runs: Vec<(usize, usize, usize)>,
     /// Offsets into `runs`, one per row plus one.
     pub run_start: Vec<usize>,
@@ -203,6 +205,10 @@ impl RowSparsity {
     /// Blocks touched by row `i`.
     pub fn row_blocks(&self, i: usize) -> &[usize] {
         &self.blocks_of_row[self.row_start[i]..self.row_start[i + 1]]
+    }
+    /// The runs of (row, block) entry `e` of `blocks_of_row`.
+    pub fn entry_runs(&self, e: usize) -> &[(usize, usize, usize)] {
+        &self.runs[self.entry_run_start[e]..self.entry_run_start[e + 1]]
     }
     /// The non-zero runs of row `i` of W: (first column in the stacked velocities, W's entries
     /// from there). Outside them row i of W is zero, so (A λ)_i = Σ W_i · (Wᵀλ) over them.
@@ -231,6 +237,8 @@ impl Default for ConstraintProblem {
             kept_lambda: Scratch::default(),
             kept_sum: Scratch::default(),
             lanes: Scratch::default(),
+            pattern: Scratch::default(),
+            stretches: Scratch::default(),
         }
     }
 }
@@ -282,12 +290,7 @@ impl ConstraintProblem {
         for ei in sp.row_start[i]..sp.row_start[i + 1] {
             for ej in sp.row_start[j]..sp.row_start[j + 1] {
                 if sp.blocks_of_row[ei] == sp.blocks_of_row[ej] {
-                    let ((lo_i, hi_i), (lo_j, hi_j)) = (sp.segment_span[ei], sp.segment_span[ej]);
-                    let (lo, hi) = (lo_i.max(lo_j), hi_i.min(hi_j));
-                    if lo < hi {
-                        let (si, sj) = (sp.segment_start[ei], sp.segment_start[ej]);
-                        a += assemble::dot(&sp.w_values[si + lo..si + hi], &sp.w_values[sj + lo..sj + hi]);
-                    }
+                    a += assemble::runs_dot(sp, sp.entry_runs(ei), sp.entry_runs(ej));
                 }
             }
         }
@@ -413,6 +416,8 @@ impl ConstraintProblem {
             kept_lambda: Scratch::default(),
             kept_sum: Scratch::default(),
             lanes: Scratch::default(),
+            pattern: Scratch::default(),
+            stretches: Scratch::default(),
             laws,
             contacts,
             friction,

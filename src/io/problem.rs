@@ -355,6 +355,8 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
         sparsity: Default::default(),
         scratch: Default::default(),
         lanes: Default::default(),
+        pattern: Default::default(),
+        stretches: Default::default(),
         kept_lambda: Default::default(),
         kept_sum: Default::default(),
         jacobian,
