@@ -41,15 +41,28 @@ pub struct ProblemBuilder {
     /// world velocity of the point per unit rate of that column's dof), each side of each
     /// contact one path to the root, last dof first.
     rates: Vec<(usize, Vec3)>,
-    /// Per row, the point rates it is formed from (None: a row of stored entries).
-    rate_rows: Vec<Option<RateRow>>,
+    /// Per row, how its Jacobian row is given.
+    forms: Vec<RowForm>,
     /// Friction model of the contacts.
     pub friction: FrictionModel,
 }
 
-/// A contact row given by its point rates instead of stored entries: its Jacobian row is
-/// `J = Σ (dᵀ u) e_c` over the rates `(c, u)` of both sides, so a contact's three rows cost the
-/// length of its bodies' paths to the root, not the width of their blocks.
+/// How a row's Jacobian row is given: stored entries, or compactly (a contact's point rates,
+/// the coefficients on one joint's dofs), so that such a row costs the length of its bodies'
+/// paths to the root, not the width of their blocks.
+#[derive(Clone, Copy, Debug)]
+enum RowForm {
+    /// Entries stored in segments ([`ProblemBuilder::push_row`]).
+    Stored,
+    /// A contact row ([`ProblemBuilder::push_point_contact`]).
+    Rates(RateRow),
+    /// `coefficients[..len]` at the consecutive columns `first..first + len`, the dofs of one
+    /// joint, each the parent of the next ([`ProblemBuilder::push_joint_row`]).
+    Joint { first: usize, coefficients: [f64; 3], len: usize },
+}
+
+/// A contact row given by its point rates: its Jacobian row is `J = Σ (dᵀ u) e_c` over the
+/// rates `(c, u)` of both sides.
 #[derive(Clone, Copy, Debug)]
 struct RateRow {
     /// Ranges in [`ProblemBuilder::rates`] of the two sides' rates (empty: a static side).
@@ -135,7 +148,7 @@ impl ProblemBuilder {
             contacts: Vec::new(),
             origins: Vec::new(),
             rates: Vec::new(),
-            rate_rows: Vec::new(),
+            forms: Vec::new(),
             friction,
         }
     }
@@ -211,7 +224,7 @@ impl ProblemBuilder {
         self.contacts.clear();
         self.origins.clear();
         self.rates.clear();
-        self.rate_rows.clear();
+        self.forms.clear();
     }
 
     /// Appends a row and returns its index and its Jacobian row (all zero) to fill, indexed by
@@ -229,7 +242,7 @@ impl ProblemBuilder {
         self.targets.push(target);
         self.softness.push(softness);
         self.origins.push(origin);
-        self.rate_rows.push(None);
+        self.forms.push(RowForm::Stored);
         self.row_segments.push(self.segment_block.len());
         (index, RowMut { builder: self })
     }
@@ -263,23 +276,61 @@ impl ProblemBuilder {
             self.targets.push(0.0);
             self.softness.push(if r == 0 { softness } else { 0.0 });
             self.origins.push(origin);
-            self.rate_rows.push(Some(RateRow { sides, direction }));
+            self.forms.push(RowForm::Rates(RateRow { sides, direction }));
             self.row_segments.push(self.segment_block.len());
         }
         self.contacts.push(ContactBlock { normal, mu, mu2 });
         normal
     }
 
-    /// The entries of row `i` given by point rates: (column, value), a column once per side
+    /// Appends a row on the dofs of one joint: `coefficients` (at most 3) at the consecutive
+    /// velocity columns from `first`, each dof the parent of the next (a joint's own dofs, as
+    /// [`crate::model::Model`] numbers them); returns its index. `target` is the row's target
+    /// velocity u*, `softness` its regularisation R_ii. Assembly scales it along the chain of
+    /// the joint's last dof only. Panics with more than 3 coefficients or columns out of range.
+    pub fn push_joint_row(
+        &mut self,
+        law: RowLaw,
+        target: f64,
+        softness: f64,
+        origin: RowOrigin,
+        first: usize,
+        coefficients: &[f64],
+    ) -> usize {
+        let len = coefficients.len();
+        assert!(
+            (1..=3).contains(&len) && first + len <= self.nv,
+            "joint row on columns {first}..{}",
+            first + len
+        );
+        let mut stored = [0.0; 3];
+        stored[..len].copy_from_slice(coefficients);
+        self.laws.push(law);
+        self.targets.push(target);
+        self.softness.push(softness);
+        self.origins.push(origin);
+        self.forms.push(RowForm::Joint { first, coefficients: stored, len });
+        self.row_segments.push(self.segment_block.len());
+        self.len() - 1
+    }
+
+    /// The entries of row `i` given compactly: (column, value), a column once per contact side
     /// whose path holds it (none for a row of stored entries).
-    fn rate_entries(&self, i: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
-        let (sides, direction) = match self.rate_rows[i] {
-            Some(RateRow { sides, direction }) => (sides, direction),
-            None => ([(0, 0); 2], Vec3::zeros()),
+    fn compact_entries(&self, i: usize) -> impl Iterator<Item = (usize, f64)> + '_ {
+        let (sides, direction, joint) = match self.forms[i] {
+            RowForm::Rates(RateRow { sides, direction }) => (sides, direction, None),
+            RowForm::Joint { first, coefficients, len } => {
+                ([(0, 0); 2], Vec3::zeros(), Some((first, coefficients, len)))
+            }
+            RowForm::Stored => ([(0, 0); 2], Vec3::zeros(), None),
         };
-        sides.into_iter().flat_map(move |(start, end)| {
+        let rates = sides.into_iter().flat_map(move |(start, end)| {
             self.rates[start..end].iter().map(move |(c, u)| (*c, direction.dot(u)))
-        })
+        });
+        let joint = joint.into_iter().flat_map(|(first, coefficients, len)| {
+            coefficients.into_iter().take(len).enumerate().map(move |(k, x)| (first + k, x))
+        });
+        rates.chain(joint)
     }
 
     /// The segments of row `i`: (block, first column, values over the block's width).
@@ -310,7 +361,10 @@ impl ProblemBuilder {
         sp: &mut RowSparsity,
         jv: &mut [f64],
     ) {
-        let row = |r: usize| self.rate_rows[i + r].expect("a contact's rows are given by point rates");
+        let row = |r: usize| match self.forms[i + r] {
+            RowForm::Rates(row) => row,
+            _ => unreachable!("a contact's rows are given by point rates"),
+        };
         let sides = row(0).sides;
         let d = [row(0).direction, row(1).direction, row(2).direction];
         let lane = |u: &Vec3| [d[0].dot(u), d[1].dot(u), d[2].dot(u), 0.0];
@@ -403,6 +457,51 @@ impl ProblemBuilder {
         }
     }
 
+    /// W of a row on one joint's dofs ([`ProblemBuilder::push_joint_row`]: `coefficients` at
+    /// the columns from `first`) into `sp`, as the runs of the chain of the joint's last dof
+    /// ([`TreeFactor::scale_chain`]); returns ‖W_i‖². `u` is scratch.
+    fn push_joint_row_w<'f>(
+        &self,
+        first: usize,
+        coefficients: &[f64],
+        factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+        u: &mut Vec<f64>,
+        sp: &mut RowSparsity,
+    ) -> f64 {
+        let last = first + coefficients.len() - 1;
+        let block = self.block_of_col[last] as usize;
+        let Some((factor, first_dof)) = factor_of(block) else { return 0.0 };
+        let block_col = self.blocks[block].0;
+        let tail = first_dof + last - block_col;
+        let path = factor.chain(tail);
+        // The joint's dofs are the chain's last entries.
+        u.clear();
+        u.resize(path.len() + 1 - coefficients.len(), 0.0);
+        u.extend_from_slice(coefficients);
+        factor.scale_chain(tail, u);
+        let col = |p: usize| block_col + path.get(p).copied().unwrap_or(tail) - first_dof;
+        let start = sp.w_values.len();
+        // Runs of consecutive columns from the first non-zero entry (ancestors the joint is
+        // not coupled to stay zero).
+        let mut p = u.iter().position(|x| *x != 0.0).unwrap_or(u.len());
+        while p < u.len() {
+            let from = p;
+            p += 1;
+            while p < u.len() && col(p) == col(p - 1) + 1 {
+                p += 1;
+            }
+            sp.runs.push((col(from), sp.w_values.len(), p - from));
+            sp.w_values.extend_from_slice(&u[from..p]);
+        }
+        if sp.w_values.len() == start {
+            return 0.0;
+        }
+        sp.blocks_of_row.push(block);
+        sp.entry_run_start.push(sp.runs.len());
+        let w = &sp.w_values[start..];
+        dot(w, w)
+    }
+
     /// Registers a contact block whose normal row is `normal` (the two friction rows follow it),
     /// for rows pushed with [`ProblemBuilder::push_row`].
     pub fn push_contact_block(&mut self, block: ContactBlock) -> usize {
@@ -429,7 +528,7 @@ impl ProblemBuilder {
     pub fn row_dot(&self, i: usize, v: &[f64]) -> f64 {
         let stored: f64 =
             self.segments(i).map(|(_, first, values)| dot(values, &v[first..first + values.len()])).sum();
-        stored + self.rate_entries(i).map(|(c, x)| x * v[c]).sum::<f64>()
+        stored + self.compact_entries(i).map(|(c, x)| x * v[c]).sum::<f64>()
     }
 
     /// Writes the dense Jacobian row `i` (`nv` entries) into `out`.
@@ -440,7 +539,7 @@ impl ProblemBuilder {
                 *o += v;
             }
         }
-        for (c, x) in self.rate_entries(i) {
+        for (c, x) in self.compact_entries(i) {
             out[c] += x;
         }
     }
@@ -522,7 +621,14 @@ impl ProblemBuilder {
             while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
                 next_contact += 1;
             }
-            if self.rate_rows[i].is_some() {
+            if let RowForm::Joint { first, coefficients, len } = self.forms[i] {
+                jv[i] = (0..len).map(|k| coefficients[k] * v_free[first + k]).sum();
+                let norm2 = self.push_joint_row_w(first, &coefficients[..len], &factor_of, &mut scaled, sp);
+                finish_row(sp, norm2);
+                i += 1;
+                continue;
+            }
+            if matches!(self.forms[i], RowForm::Rates(_)) {
                 debug_assert_eq!(self.contacts.get(next_contact).map(|c| c.normal), Some(i));
                 self.push_rate_contact(
                     i,
@@ -570,7 +676,7 @@ impl ProblemBuilder {
                         problem.jacobian[(i, first + k)] += *v;
                     }
                 }
-                for (c, x) in self.rate_entries(i) {
+                for (c, x) in self.compact_entries(i) {
                     problem.jacobian[(i, c)] += x;
                 }
                 let sp = &problem.sparsity;
@@ -722,7 +828,27 @@ impl<'a> TreeFactor<'a> {
         &self.dof_path[self.dof_path_start[tail]..self.dof_path_start[tail + 1]]
     }
 
-    /// [`Self::scale_lanes`] for rows non-zero only on the chain of dof `tail` and its
+    /// [`Self::scale_chain_lanes`] for one row: `u[p]` its entry at the chain's p-th dof.
+    fn scale_chain(&self, tail: usize, u: &mut [f64]) {
+        let path = self.chain(tail);
+        debug_assert_eq!(u.len(), path.len() + 1);
+        let dof_at = |p: usize| path.get(p).copied().unwrap_or(tail);
+        for p in (1..u.len()).rev() {
+            let (dof, up) = (dof_at(p), u[p]);
+            if up == 0.0 || !self.coupled[dof] {
+                continue;
+            }
+            let row = &self.packed[self.dof_path_start[dof] + dof..][..p];
+            for (uq, &l) in u[..p].iter_mut().zip(row) {
+                *uq -= l * up;
+            }
+        }
+        for (p, x) in u.iter_mut().enumerate() {
+            *x *= self.inv_sqrt_d[dof_at(p)];
+        }
+    }
+
+    /// [`Self::scale_row`] for up to four rows (lanes) non-zero only on the chain of dof `tail` and its
     /// ancestors: `u[p]` holds the lanes at the chain's p-th dof (root first, `tail` last). The
     /// ancestors of the chain's p-th dof are its first p dofs, and that dof's packed row of L
     /// holds their entries in the same order, so the back substitution is a dense triangular
@@ -1081,7 +1207,7 @@ mod tests {
         // The rows' entries are the point rates' along each direction (both sides summed).
         for i in [0, 1, 2, 4, 5, 6] {
             let mut expected = vec![0.0; nv];
-            let RateRow { sides, direction } = builder.rate_rows[i].unwrap();
+            let RowForm::Rates(RateRow { sides, direction }) = builder.forms[i] else { unreachable!() };
             for (start, end) in sides {
                 for (c, u) in &builder.rates[start..end] {
                     expected[*c] += direction.dot(u);
@@ -1103,9 +1229,10 @@ mod tests {
         let (model, data, m, mut rng) = factored_ragdoll(5);
         let nv = model.nv();
         let mut builder = ProblemBuilder::new(nv, FrictionModel::Cone);
-        // Rows on the dofs of one joint (a ball joint's three friction rows, a limit on a
-        // combination of two of them), a row on two limbs' dofs, unit rows on one chain and a
-        // unit row on a root dof; J v_free is formed with the rows (the bias).
+        // Rows on the dofs of one joint given compactly (a ball joint's three friction rows,
+        // limits on combinations of its dofs, a root dof's row) and the same as stored rows,
+        // a row on two limbs' dofs, unit rows on one chain and a unit row on a root dof; J v_free
+        // is formed with the rows (the bias).
         let deepest = last_dof_of(&model, model.nbodies() - 1);
         let other_limb = last_dof_of(&model, model.nbodies() / 2);
         let unit = |builder: &mut ProblemBuilder, entries: &[(usize, f64)]| {
@@ -1116,9 +1243,13 @@ mod tests {
             }
         };
         let joint = deepest - 2;
+        let law = RowLaw::Bounded { lo: -1.0, hi: 1.0 };
         for k in joint..=deepest {
-            unit(&mut builder, &[(k, 1.0)]);
+            builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, k, &[1.0]);
         }
+        builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, joint, &[0.6, -0.8]);
+        builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, joint, &[0.6, 0.0, -0.8]);
+        builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, 0, &[1.0]);
         unit(&mut builder, &[(joint, 0.6), (joint + 1, -0.8)]);
         unit(&mut builder, &[(deepest, 1.0), (other_limb, 0.5)]);
         let chain: Vec<usize> =
@@ -1128,6 +1259,23 @@ mod tests {
         }
         unit(&mut builder, &[(0, 1.0)]);
         let problem = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
+        // The compact joint rows' Jacobian rows are their coefficients at their columns.
+        let expected: [&[(usize, f64)]; 6] = [
+            &[(joint, 1.0)],
+            &[(joint + 1, 1.0)],
+            &[(joint + 2, 1.0)],
+            &[(joint, 0.6), (joint + 1, -0.8)],
+            &[(joint, 0.6), (joint + 2, -0.8)],
+            &[(0, 1.0)],
+        ];
+        for (i, entries) in expected.iter().enumerate() {
+            let mut row = vec![0.0; nv];
+            for &(k, x) in entries.iter() {
+                row[k] = x;
+            }
+            assert_eq!(problem.jacobian.row(i).iter().copied().collect::<Vec<_>>(), row, "row {i}");
+            assert_eq!(builder.row(i), row, "row {i}");
+        }
         for i in 0..builder.len() {
             // W's rows are the dense solve's M⁻¹Jᵀ mapped back (their spans too).
             let dense = problem.minv_jt.column(i);

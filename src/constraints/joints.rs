@@ -167,8 +167,7 @@ pub fn add_joint_limit_rows_speculative(
                 }
                 let approach = sign * v[vi];
                 let target = limit_target(distance, approach, h, p);
-                let (_, mut row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
-                row[col + vi] = sign;
+                builder.push_joint_row(RowLaw::Unilateral, target, p.cfm / h, origin, col + vi, &[sign]);
             }
         }
     }
@@ -211,10 +210,8 @@ fn add_ball_limit_rows(
             continue;
         }
         let target = limit_target(distance, approach, h, p);
-        let (_, mut row) = builder.push_row(RowLaw::Unilateral, target, p.cfm / h, origin);
-        for k in 0..3 {
-            row[col + iv + k] = direction[k];
-        }
+        let coefficients = [direction[0], direction[1], direction[2]];
+        builder.push_joint_row(RowLaw::Unilateral, target, p.cfm / h, origin, col + iv, &coefficients);
     }
 }
 
@@ -239,13 +236,14 @@ pub fn add_motor_row(
     h: f64,
 ) {
     let bound = max_force.abs() * h;
-    let (_, mut row) = builder.push_row(
+    builder.push_joint_row(
         RowLaw::Bounded { lo: -bound, hi: bound },
         target_velocity,
         0.0,
         RowOrigin::Motor(col + dof),
+        col + dof,
+        &[1.0],
     );
-    row[col + dof] = 1.0;
 }
 
 /// Appends a Coulomb friction row for every dof of `model` with positive friction
@@ -254,13 +252,14 @@ pub fn add_joint_friction_rows(builder: &mut ProblemBuilder, model: &Model, col:
     for (k, &f) in model.friction().iter().enumerate() {
         if f > 0.0 {
             let bound = f * h;
-            let (_, mut row) = builder.push_row(
+            builder.push_joint_row(
                 RowLaw::Bounded { lo: -bound, hi: bound },
                 0.0,
                 0.0,
                 RowOrigin::JointFriction(col + k),
+                col + k,
+                &[1.0],
             );
-            row[col + k] = 1.0;
         }
     }
 }
