@@ -208,7 +208,7 @@ impl ProblemBuilder {
     /// The point rates of the contact rows: append a contact's sides to it with
     /// [`crate::collision::point_rates`] (columns of this builder's velocities), then give their
     /// ranges to [`ProblemBuilder::push_point_contact`].
-    pub fn rates_mut(&mut self) -> &mut Vec<(usize, Vec3)> {
+    pub(crate) fn rates_mut(&mut self) -> &mut Vec<(usize, Vec3)> {
         &mut self.rates
     }
 
@@ -256,8 +256,10 @@ impl ProblemBuilder {
     /// targets are zero ([`ProblemBuilder::set_target`]).
     ///
     /// Assembly works on the paths: a contact costs the length of its bodies' paths to the
-    /// root, not the width of their blocks. Panics if a range is out of bounds.
-    pub fn push_point_contact(
+    /// root, not the width of their blocks. Panics if a range is out of bounds (and, in debug
+    /// builds, at assembly if a side's rates are not a path to the root). The public way in
+    /// is [`crate::constraints::add_contact_rows`], which forms the rates itself.
+    pub(crate) fn push_point_contact(
         &mut self,
         sides: [(usize, usize); 2],
         directions: [Vec3; 3],
@@ -287,7 +289,9 @@ impl ProblemBuilder {
     /// velocity columns from `first`, each dof the parent of the next (a joint's own dofs, as
     /// [`crate::model::Model`] numbers them); returns its index. `target` is the row's target
     /// velocity u*, `softness` its regularisation R_ii. Assembly scales it along the chain of
-    /// the joint's last dof only. Panics with more than 3 coefficients or columns out of range.
+    /// the joint's last dof only (columns that are not one joint's chained dofs are scaled as
+    /// stored entries). Panics with more than 3 coefficients, or columns out of range or in
+    /// two velocity blocks.
     pub fn push_joint_row(
         &mut self,
         law: RowLaw,
@@ -299,8 +303,10 @@ impl ProblemBuilder {
     ) -> usize {
         let len = coefficients.len();
         assert!(
-            (1..=3).contains(&len) && first + len <= self.nv,
-            "joint row on columns {first}..{}",
+            (1..=3).contains(&len)
+                && first + len <= self.nv
+                && self.block_of_col[first] == self.block_of_col[first + len - 1],
+            "joint row on columns {first}..{} (at most 3, in one velocity block)",
             first + len
         );
         let mut stored = [0.0; 3];
@@ -401,6 +407,15 @@ impl ProblemBuilder {
             let (block_col, width) = self.blocks[block];
             // A block that cannot move (no factor) has W = 0 there: no runs.
             let factor = factor_of(block);
+            // `add_contact_rows_with` fills the rates with whole paths (the builder's contract).
+            if let (true, Some((factor, first_dof))) = (cfg!(debug_assertions), factor) {
+                for path in [first, second] {
+                    assert!(
+                        factor.is_path_to_root(path.iter().map(|&(c, _)| first_dof + c - block_col)),
+                        "the point rates of contact row {i} are not one body's path to the root"
+                    );
+                }
+            }
             let (offset, from) = (lanes.len(), stretches.len());
             if second.is_empty() {
                 // The path's rates run from its last dof up: reversed, the chain root first.
@@ -474,6 +489,23 @@ impl ProblemBuilder {
         let block_col = self.blocks[block].0;
         let tail = first_dof + last - block_col;
         let path = factor.chain(tail);
+        let dof = |c: usize| first_dof + c - block_col;
+        if (first + 1..=last).any(|c| factor.dof_parent[dof(c)] != dof(c - 1)) {
+            // Not one joint's chained dofs: the row as stored entries, scaled by the walk.
+            let width = self.blocks[block].1;
+            u.clear();
+            u.resize(width, 0.0);
+            u[first - block_col..=last - block_col].copy_from_slice(coefficients);
+            let Some(last_entry) = last_nonzero(u) else { return 0.0 };
+            let span = factor.scale_row(first_dof, last_entry, u);
+            let runs = sp.runs.len();
+            let norm2 = push_dense_runs(sp, block_col, u, span);
+            if sp.runs.len() > runs {
+                sp.blocks_of_row.push(block);
+                sp.entry_run_start.push(sp.runs.len());
+            }
+            return norm2;
+        }
         // The joint's dofs are the chain's last entries.
         u.clear();
         u.resize(path.len() + 1 - coefficients.len(), 0.0);
@@ -821,6 +853,20 @@ impl<'a> TreeFactor<'a> {
         let depth_of_start = self.dof_path_start[start + 1] - self.dof_path_start[start];
         let from = self.dof_path_start[k] + k + depth_of_start;
         &self.packed[from..from + (end - start)]
+    }
+
+    /// Whether `dofs` (a side's point rates' dofs, [`crate::collision::point_rates`]) run from
+    /// a dof up its path to the root, each the parent of the one before, ending at a root dof
+    /// (or are empty).
+    fn is_path_to_root(&self, mut dofs: impl Iterator<Item = usize>) -> bool {
+        let Some(mut k) = dofs.next() else { return true };
+        for parent in dofs {
+            if self.dof_parent.get(k) != Some(&parent) {
+                return false;
+            }
+            k = parent;
+        }
+        self.dof_parent.get(k) == Some(&NO_DOF)
     }
 
     /// The ancestors of dof `tail`, root first.
@@ -1225,6 +1271,20 @@ mod tests {
     }
 
     #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "not one body's path to the root")]
+    fn point_rates_that_skip_a_dof_of_the_path_are_refused() {
+        let (model, data, _, mut rng) = factored_ragdoll(4);
+        let mut builder = ProblemBuilder::new(model.nv(), FrictionModel::Cone);
+        let side = random_rates(&mut builder, &model, model.nbodies() - 1, NO_DOF, &mut rng);
+        builder.rates_mut().remove(side.0 + 1);
+        let side = (side.0, side.1 - 1);
+        builder.push_point_contact([side, (side.1, side.1)], [Vec3::z(); 3], 0.0, RowOrigin::Other, 0.5, 0.5);
+        let v_free = DVector::zeros(model.nv());
+        assemble_single(&builder, &model, &data, &v_free, &mut ConstraintProblem::default());
+    }
+
+    #[test]
     fn joint_rows_give_the_delassus_matrix_and_bias_of_a_dense_solve() {
         let (model, data, m, mut rng) = factored_ragdoll(5);
         let nv = model.nv();
@@ -1250,6 +1310,9 @@ mod tests {
         builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, joint, &[0.6, -0.8]);
         builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, joint, &[0.6, 0.0, -0.8]);
         builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, 0, &[1.0]);
+        // Two consecutive columns that are not parent and child (another limb's first dof).
+        let unchained = (1..nv).find(|&k| model.dof_parent[k] != k - 1).unwrap();
+        builder.push_joint_row(law, 0.0, 0.0, RowOrigin::Other, unchained - 1, &[0.5, 1.0]);
         unit(&mut builder, &[(joint, 0.6), (joint + 1, -0.8)]);
         unit(&mut builder, &[(deepest, 1.0), (other_limb, 0.5)]);
         let chain: Vec<usize> =
@@ -1260,13 +1323,14 @@ mod tests {
         unit(&mut builder, &[(0, 1.0)]);
         let problem = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
         // The compact joint rows' Jacobian rows are their coefficients at their columns.
-        let expected: [&[(usize, f64)]; 6] = [
+        let expected: [&[(usize, f64)]; 7] = [
             &[(joint, 1.0)],
             &[(joint + 1, 1.0)],
             &[(joint + 2, 1.0)],
             &[(joint, 0.6), (joint + 1, -0.8)],
             &[(joint, 0.6), (joint + 2, -0.8)],
             &[(0, 1.0)],
+            &[(unchained - 1, 0.5), (unchained, 1.0)],
         ];
         for (i, entries) in expected.iter().enumerate() {
             let mut row = vec![0.0; nv];
