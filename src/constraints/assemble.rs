@@ -458,15 +458,14 @@ impl ProblemBuilder {
         for r in 0..3 {
             let mut norm2 = 0.0;
             for (block, range) in shapes.iter().flatten() {
-                let start = sp.w_values.len();
+                let (start, runs) = (sp.w_values.len(), sp.runs.len());
                 for &(col, lane, len) in &stretches[range.clone()] {
                     sp.runs.push((col, sp.w_values.len(), len));
                     sp.w_values.extend(lanes[lane..lane + len].iter().map(|x| x[r]));
                 }
                 let w = &sp.w_values[start..];
                 norm2 += dot(w, w);
-                sp.blocks_of_row.push(*block);
-                sp.entry_run_start.push(sp.runs.len());
+                close_entry(sp, *block, runs);
             }
             finish_row(sp, norm2);
         }
@@ -488,7 +487,6 @@ impl ProblemBuilder {
         let Some((factor, first_dof)) = factor_of(block) else { return 0.0 };
         let block_col = self.blocks[block].0;
         let tail = first_dof + last - block_col;
-        let path = factor.chain(tail);
         let dof = |c: usize| first_dof + c - block_col;
         if (first + 1..=last).any(|c| factor.dof_parent[dof(c)] != dof(c - 1)) {
             // Not one joint's chained dofs: the row as stored entries, scaled by the walk.
@@ -500,19 +498,17 @@ impl ProblemBuilder {
             let span = factor.scale_row(first_dof, last_entry, u);
             let runs = sp.runs.len();
             let norm2 = push_dense_runs(sp, block_col, u, span);
-            if sp.runs.len() > runs {
-                sp.blocks_of_row.push(block);
-                sp.entry_run_start.push(sp.runs.len());
-            }
+            close_entry(sp, block, runs);
             return norm2;
         }
         // The joint's dofs are the chain's last entries.
+        let path = factor.chain(tail);
         u.clear();
         u.resize(path.len() + 1 - coefficients.len(), 0.0);
         u.extend_from_slice(coefficients);
         factor.scale_chain(tail, u);
         let col = |p: usize| block_col + path.get(p).copied().unwrap_or(tail) - first_dof;
-        let start = sp.w_values.len();
+        let (start, runs) = (sp.w_values.len(), sp.runs.len());
         // Runs of consecutive columns from the first non-zero entry (ancestors the joint is
         // not coupled to stay zero).
         let mut p = u.iter().position(|x| *x != 0.0).unwrap_or(u.len());
@@ -525,11 +521,7 @@ impl ProblemBuilder {
             sp.runs.push((col(from), sp.w_values.len(), p - from));
             sp.w_values.extend_from_slice(&u[from..p]);
         }
-        if sp.w_values.len() == start {
-            return 0.0;
-        }
-        sp.blocks_of_row.push(block);
-        sp.entry_run_start.push(sp.runs.len());
+        close_entry(sp, block, runs);
         let w = &sp.w_values[start..];
         dot(w, w)
     }
@@ -685,10 +677,7 @@ impl ProblemBuilder {
                 let span = factor.scale_row(first_dof, last, &mut scaled);
                 let runs = sp.runs.len();
                 norm2 += push_dense_runs(sp, col, &scaled, span);
-                if sp.runs.len() > runs {
-                    sp.blocks_of_row.push(b);
-                    sp.entry_run_start.push(sp.runs.len());
-                }
+                close_entry(sp, b, runs);
             }
             finish_row(sp, norm2);
             jv[i] = velocity;
@@ -785,6 +774,15 @@ fn merge_paths(
             (None, None) => return,
         };
         pattern.push(next - block_col);
+    }
+}
+
+/// Ends the row's entry on block `block` whose runs were appended since `runs_before`: recorded
+/// only if it has any (W is zero on the block otherwise).
+fn close_entry(sp: &mut RowSparsity, block: usize, runs_before: usize) {
+    if sp.runs.len() > runs_before {
+        sp.blocks_of_row.push(block);
+        sp.entry_run_start.push(sp.runs.len());
     }
 }
 

@@ -187,8 +187,9 @@ pub struct RowSparsity {
     /// ‖W_i‖² = A_ii per row (1/kg or 1/(kg·m²)), the diagonal every solver and the residuals
     /// need; empty when the problem was not built from segments.
     pub row_norm2: Vec<f64>,
-    /// Runs of non-zero entries of W's rows: (first column in the stacked velocities, offset in
-    /// `w_values`, length), in increasing columns within each (row, block) entry. A row of W is
+    /// Runs of W's rows, outside which W is zero (a run may hold a few zeros): (first column in
+    /// the stacked velocities, offset in `w_values`, length), in increasing columns within each
+    /// (row, block) entry. A row of W is
     /// non-zero only on its bodies' paths to the root, which in a branched tree (a ragdoll's
     /// foot: pelvis, hip, knee, ankle) is a few runs of a much wider span; only the runs'
     /// entries are stored. Row i's runs are `runs[run_start[i]..run_start[i + 1]]`.
