@@ -24,7 +24,8 @@
 //! - every other row keeps its impulse (zero, or the bound it sits at).
 //!
 //! The reduced system (not symmetric when a contact slides) is solved by LU with partial
-//! pivoting of `K + εI` and one refinement step against K: a proximal-point iteration, so
+//! pivoting of `K + εI` — by Cholesky when every unknown is a free row and K is A + R over them
+//! (a resting stack) — and one refinement step against K: a proximal-point iteration, so
 //! that the singular K of a redundant contact set still yields a solution near PGS's iterate.
 //! That solution is followed as far as the active set allows (see [`subspace_step`]), the
 //! result is projected onto the feasible set and taken only if it lowers the exact residual
@@ -671,21 +672,42 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     for u in 0..s {
         ws.lu[u * s + u] += epsilon;
     }
-    if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
-        return false;
+    // Only free rows (no contact on its cone, facet or vertex): K is A + R over them,
+    // symmetric and positive semi-definite, and K + εI is factored by Cholesky at half the
+    // LU's cost; if rounding makes a pivot non-positive, by LU after all.
+    let symmetric = ws.units.iter().all(|unit| matches!(unit, Unit::Row(_)));
+    let cholesky = symmetric && cholesky_factor(&mut ws.lu, s);
+    if !cholesky {
+        if symmetric {
+            ws.lu.clear();
+            ws.lu.extend_from_slice(&ws.k);
+            for u in 0..s {
+                ws.lu[u * s + u] += epsilon;
+            }
+        }
+        if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
+            return false;
+        }
     }
+    let solve = |lu: &[f64], pivots: &[usize], x: &mut [f64]| {
+        if cholesky {
+            cholesky_solve(lu, s, x);
+        } else {
+            lu_solve(lu, pivots, s, x);
+        }
+    };
     // Proximal iteration x ← x + (K + εI)⁻¹ (r − K x), from x = 0: its first step is the
     // plain solve.
     ws.x.clear();
     ws.x.extend_from_slice(&ws.rhs);
-    lu_solve(&ws.lu, &ws.pivots, s, &mut ws.x);
+    solve(&ws.lu, &ws.pivots, &mut ws.x);
     for _ in 1..REFINEMENTS {
         ws.correction.clear();
         for u in 0..s {
             let kx: f64 = crate::constraints::dot(&ws.k[u * s..(u + 1) * s], &ws.x);
             ws.correction.push(ws.rhs[u] - kx);
         }
-        lu_solve(&ws.lu, &ws.pivots, s, &mut ws.correction);
+        solve(&ws.lu, &ws.pivots, &mut ws.correction);
         for (x, d) in ws.x.iter_mut().zip(&ws.correction) {
             *x += d;
         }
@@ -1092,6 +1114,43 @@ fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
     true
 }
 
+/// In-place Cholesky factorisation `a = L Lᵀ` of the symmetric row-major s × s matrix `a`
+/// (row by row, each entry of L one dot product of two row heads); L is left in the lower
+/// triangle, the upper one is not read. False if a pivot is not positive.
+fn cholesky_factor(a: &mut [f64], s: usize) -> bool {
+    for i in 0..s {
+        let (done, rest) = a.split_at_mut(i * s);
+        let row_i = &mut rest[..s];
+        for j in 0..i {
+            let row_j = &done[j * s..j * s + j + 1];
+            let sum = crate::constraints::dot(&row_i[..j], &row_j[..j]);
+            row_i[j] = (row_i[j] - sum) / row_j[j];
+        }
+        let pivot = row_i[i] - crate::constraints::dot(&row_i[..i], &row_i[..i]);
+        if pivot.is_nan() || pivot <= 0.0 {
+            return false;
+        }
+        row_i[i] = pivot.sqrt();
+    }
+    true
+}
+
+/// Solves with the factor of [`cholesky_factor`], in place: `L y = b`, then `Lᵀ x = y` by
+/// columns of Lᵀ (rows of L, contiguous).
+fn cholesky_solve(l: &[f64], s: usize, x: &mut [f64]) {
+    for r in 0..s {
+        let sum = crate::constraints::dot(&l[r * s..r * s + r], &x[..r]);
+        x[r] = (x[r] - sum) / l[r * s + r];
+    }
+    for r in (0..s).rev() {
+        let xr = x[r] / l[r * s + r];
+        x[r] = xr;
+        for (x, l) in x[..r].iter_mut().zip(&l[r * s..r * s + r]) {
+            *x -= l * xr;
+        }
+    }
+}
+
 /// Solves with the factors of [`lu_factor`], in place.
 fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
     for (col, &p) in pivots.iter().enumerate() {
@@ -1110,6 +1169,35 @@ fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Cholesky and LU agree on a symmetric positive definite system (a Gram matrix plus a
+    /// small diagonal), and Cholesky refuses an indefinite one.
+    #[test]
+    fn cholesky_solves_what_lu_solves_and_refuses_an_indefinite_matrix() {
+        let s = 9;
+        let b: Vec<f64> = (0..s * 12).map(|k| ((k * 37 % 23) as f64 - 11.0) / 7.0).collect();
+        let mut a = vec![0.0; s * s];
+        for i in 0..s {
+            for j in 0..s {
+                a[i * s + j] = crate::constraints::dot(&b[i * 12..(i + 1) * 12], &b[j * 12..(j + 1) * 12]);
+            }
+            a[i * s + i] += 1e-3;
+        }
+        let rhs: Vec<f64> = (0..s).map(|i| (i as f64 * 0.9).cos()).collect();
+        let (mut l, mut lu, mut pivots) = (a.clone(), a.clone(), Vec::new());
+        assert!(cholesky_factor(&mut l, s));
+        assert!(lu_factor(&mut lu, &mut pivots, s));
+        let (mut x, mut y) = (rhs.clone(), rhs.clone());
+        cholesky_solve(&l, s, &mut x);
+        lu_solve(&lu, &pivots, s, &mut y);
+        for i in 0..s {
+            let residual = crate::constraints::dot(&a[i * s..(i + 1) * s], &x) - rhs[i];
+            assert!(residual.abs() < 1e-9, "row {i}: residual {residual}");
+            assert!((x[i] - y[i]).abs() < 1e-8 * y[i].abs().max(1.0), "{} against {}", x[i], y[i]);
+        }
+        a[4 * s + 4] = -1.0;
+        assert!(!cholesky_factor(&mut a, s));
+    }
 
     /// PGS's iterate leaves a contact that slides just inside its friction pyramid (its normal
     /// impulse still growing over the sweeps): the step guesses it on its facet, where it
