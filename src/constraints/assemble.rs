@@ -455,6 +455,14 @@ impl ProblemBuilder {
             }
         }
         jv[i..i + 3].copy_from_slice(&velocity[..3]);
+        // A_{t1 t2}, which PGS's two-row friction step needs, while the lanes are at hand.
+        let mut coupling = 0.0;
+        for (_, range) in shapes.iter().flatten() {
+            for &(_, lane, len) in &stretches[range.clone()] {
+                coupling += lanes[lane..lane + len].iter().map(|x| x[1] * x[2]).sum::<f64>();
+            }
+        }
+        sp.friction_coupling.push(coupling);
         for r in 0..3 {
             let mut norm2 = 0.0;
             for (block, range) in shapes.iter().flatten() {
@@ -625,6 +633,7 @@ impl ProblemBuilder {
         sp.entry_run_start.clear();
         sp.w_values.clear();
         sp.row_norm2.clear();
+        sp.friction_coupling.clear();
         sp.runs.clear();
         sp.run_start.clear();
         sp.run_start.push(0);
@@ -682,6 +691,10 @@ impl ProblemBuilder {
             finish_row(sp, norm2);
             jv[i] = velocity;
             i += 1;
+        }
+        if problem.sparsity.friction_coupling.len() != self.contacts.len() {
+            // Some contact's rows were stored entries: A_{t1 t2} from W when asked.
+            problem.sparsity.friction_coupling.clear();
         }
         *problem.lanes.0.get_mut() = lanes;
         *problem.pattern.0.get_mut() = pattern;
@@ -1168,8 +1181,8 @@ mod tests {
     }
 
     /// Assembles `builder`'s rows at a random free velocity and checks against the dense solve
-    /// with M: A = J M⁻¹ Jᵀ, each ‖W_i‖² = A_ii, and the bias J v_free (no targets). Returns the
-    /// problem for further checks.
+    /// with M: A = J M⁻¹ Jᵀ, each ‖W_i‖² = A_ii, each contact's A_{t1 t2}, and the bias J v_free
+    /// (no targets). Returns the problem for further checks.
     fn assemble_against_dense(
         builder: &ProblemBuilder,
         model: &Model,
@@ -1188,6 +1201,11 @@ mod tests {
         for i in 0..builder.len() {
             assert!((problem.sparsity.row_norm2[i] - expected[(i, i)]).abs() < 1e-12 * scale, "row {i}");
             assert!((problem.bias[i] - velocity[i]).abs() < 1e-12 * velocity.amax(), "row {i}");
+        }
+        for c in 0..problem.contacts.len() {
+            let (_, t1, t2) = problem.contacts[c].rows();
+            let coupling = problem.friction_coupling(c);
+            assert!((coupling - expected[(t1, t2)]).abs() < 1e-12 * scale, "contact {c}");
         }
         problem
     }
@@ -1236,6 +1254,10 @@ mod tests {
             let (_, mut row) = builder.push_row(RowLaw::Unilateral, 0.0, 0.0, RowOrigin::Other);
             fill_path(&model, last / 2, 1.0, &mut rng, &mut row);
         }
+        // Contacts given by point rates only: assembly keeps their A_{t1 t2}; with a contact of
+        // stored rows among them (below) it is formed from W when asked.
+        let rates_only = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
+        assert_eq!(rates_only.sparsity.friction_coupling.len(), 2);
         let normal = builder.len();
         for r in 0..3 {
             let law = if r == 0 {
@@ -1248,6 +1270,7 @@ mod tests {
         }
         builder.push_contact_block(ContactBlock { normal, mu: 0.5, mu2: 0.5 });
         let problem = assemble_against_dense(&builder, &model, &data, &m, &mut rng);
+        assert!(problem.sparsity.friction_coupling.is_empty());
         // The rows' entries are the point rates' along each direction (both sides summed).
         for i in [0, 1, 2, 4, 5, 6] {
             let mut expected = vec![0.0; nv];

@@ -187,6 +187,10 @@ pub struct RowSparsity {
     /// ‖W_i‖² = A_ii per row (1/kg or 1/(kg·m²)), the diagonal every solver and the residuals
     /// need; empty when the problem was not built from segments.
     pub row_norm2: Vec<f64>,
+    /// A_{t1 t2} per contact, in contact order: the coupling of its two friction rows
+    /// (1/kg or 1/(kg·m²)), formed with their rows of W when every contact was given by point
+    /// rates; empty otherwise (then [`ConstraintProblem::friction_coupling`] forms it from W).
+    pub friction_coupling: Vec<f64>,
     /// Runs of W's rows, outside which W is zero (a run may hold a few zeros): (first column in
     /// the stacked velocities, offset in `w_values`, length), in increasing columns within each
     /// (row, block) entry. A row of W is
@@ -296,6 +300,18 @@ impl ConstraintProblem {
             }
         }
         a
+    }
+
+    /// A_{t1 t2} of contact `contact`'s two friction rows: kept from assembly, or
+    /// [`ConstraintProblem::delassus_entry`].
+    pub fn friction_coupling(&self, contact: usize) -> f64 {
+        match self.sparsity.friction_coupling.get(contact) {
+            Some(&a) if self.sparsity.friction_coupling.len() == self.contacts.len() => a,
+            _ => {
+                let (_, t1, t2) = self.contacts[contact].rows();
+                self.delassus_entry(t1, t2)
+            }
+        }
     }
 
     /// The dense A: borrowed, or formed from W when the problem is matrix-free (for the

@@ -180,10 +180,7 @@ impl ConstraintSolver for PgsSolver {
             .diagonal
             .extend((0..n).map(|i| problem.delassus_entry(i, i) + problem.regularization[i]));
         self.workspace.coupling.clear();
-        self.workspace.coupling.extend(problem.contacts.iter().map(|c| {
-            let (_, t1, t2) = c.rows();
-            problem.delassus_entry(t1, t2)
-        }));
+        self.workspace.coupling.extend((0..problem.contacts.len()).map(|c| problem.friction_coupling(c)));
         let mut gamma = std::mem::take(&mut self.workspace.gamma);
         gamma.clear();
         gamma.resize(problem.contacts.len(), 0.0);
