@@ -1170,6 +1170,38 @@ fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
 mod tests {
     use super::*;
 
+    /// The Gram over a landing ragdoll's rows and over a subset of them in another order
+    /// (matrix-free, W on paths through a branched tree; groups of rows with equal column
+    /// ranges as lanes) equals A's entries W_i · W_j over W's runs, plus R on the diagonal.
+    #[test]
+    fn the_gram_from_lanes_is_a_over_the_rows() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll_fall.toml");
+        let mut scene = crate::io::scene::load_file(path).unwrap();
+        for _ in 0..450 {
+            scene.world.step().unwrap();
+        }
+        let problem = scene.world.problem();
+        let n = problem.rows();
+        assert!(problem.is_matrix_free() && n > 30, "{n} rows");
+        for rows in [(0..n).collect::<Vec<_>>(), (0..n).rev().step_by(3).collect()] {
+            let mut ws = SubspaceWorkspace { rows, ..Default::default() };
+            fill_gram(problem, &mut ws);
+            let m = ws.rows.len();
+            let scale = (0..m).map(|a| ws.gram[a * m + a]).fold(0.0, f64::max);
+            for (a, &i) in ws.rows.iter().enumerate() {
+                for (b, &j) in ws.rows.iter().enumerate() {
+                    let expected =
+                        problem.delassus_entry(i, j) + if i == j { problem.regularization[i] } else { 0.0 };
+                    let got = ws.gram[a * m + b];
+                    assert!(
+                        (got - expected).abs() <= 1e-12 * scale,
+                        "rows {i}, {j}: {got} against {expected}"
+                    );
+                }
+            }
+        }
+    }
+
     /// Cholesky and LU agree on a symmetric positive definite system (a Gram matrix plus a
     /// small diagonal), and Cholesky refuses an indefinite one.
     #[test]
