@@ -1077,10 +1077,15 @@ fn project(problem: &ConstraintProblem, lambda: &mut DVector<f64>) {
 }
 
 /// In-place LU factorisation with partial pivoting of the row-major s × s matrix `a`; false if
-/// a pivot vanishes.
+/// a pivot vanishes. Two columns per pass over the trailing rows: column `col`'s multipliers
+/// update only column `col + 1` first (enough to choose its pivot and finish its pivot row),
+/// then each row below takes both rank-1 updates in one pass, `x − f₁ u₁ − f₂ u₂` in the
+/// order of two single passes — the same factors to the bit, with half the passes (the
+/// reduced systems are small: ~40 unknowns, rows too short for the per-row work to vanish).
 fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
     pivots.clear();
-    for col in 0..s {
+    // Picks the pivot of column `col` among rows col.. and swaps it into row col; its inverse.
+    let pivot = |a: &mut [f64], pivots: &mut Vec<usize>, col: usize| {
         let (mut best, mut best_abs) = (col, a[col * s + col].abs());
         for r in col + 1..s {
             let v = a[r * s + col].abs();
@@ -1089,7 +1094,7 @@ fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
             }
         }
         if best_abs <= 0.0 || !best_abs.is_finite() {
-            return false;
+            return None;
         }
         pivots.push(best);
         if best != col {
@@ -1098,18 +1103,59 @@ fn lu_factor(a: &mut [f64], pivots: &mut Vec<usize>, s: usize) -> bool {
         }
         // One division per column, not one per entry below the pivot: a division's throughput
         // is that of several vector multiply-adds.
-        let inverse_pivot = 1.0 / a[col * s + col];
-        let (top, bottom) = a.split_at_mut((col + 1) * s);
-        let pivot_row = &top[col * s + col + 1..(col + 1) * s];
-        for row in bottom.chunks_exact_mut(s) {
-            let factor = row[col] * inverse_pivot;
+        Some(1.0 / a[col * s + col])
+    };
+    let mut col = 0;
+    while col < s {
+        let Some(inverse_first) = pivot(a, pivots, col) else { return false };
+        if col + 1 == s {
+            break;
+        }
+        // Multipliers of column col, applied to column col + 1 only.
+        let next = col + 1;
+        let upper_right = a[col * s + next];
+        for row in a[next * s..].chunks_exact_mut(s) {
+            let factor = row[col] * inverse_first;
             row[col] = factor;
             if factor != 0.0 {
-                for (x, p) in row[col + 1..].iter_mut().zip(pivot_row) {
-                    *x -= factor * p;
-                }
+                row[next] -= factor * upper_right;
             }
         }
+        let Some(inverse_second) = pivot(a, pivots, next) else { return false };
+        let (top, bottom) = a.split_at_mut((next + 1) * s);
+        let (first_row, second_row) = top[col * s..].split_at_mut(s);
+        // The second pivot row's rest takes column col's update now (it is U's row next).
+        let factor = second_row[col];
+        if factor != 0.0 {
+            for (x, p) in second_row[next + 1..].iter_mut().zip(&first_row[next + 1..]) {
+                *x -= factor * p;
+            }
+        }
+        let (u1, u2) = (&first_row[next + 1..], &second_row[next + 1..]);
+        for row in bottom.chunks_exact_mut(s) {
+            let (f1, f2) = (row[col], row[next] * inverse_second);
+            row[next] = f2;
+            let rest = &mut row[next + 1..];
+            match (f1 != 0.0, f2 != 0.0) {
+                (true, true) => {
+                    for ((x, p), q) in rest.iter_mut().zip(u1).zip(u2) {
+                        *x = *x - f1 * p - f2 * q;
+                    }
+                }
+                (true, false) => {
+                    for (x, p) in rest.iter_mut().zip(u1) {
+                        *x -= f1 * p;
+                    }
+                }
+                (false, true) => {
+                    for (x, q) in rest.iter_mut().zip(u2) {
+                        *x -= f2 * q;
+                    }
+                }
+                (false, false) => {}
+            }
+        }
+        col += 2;
     }
     true
 }
