@@ -521,7 +521,22 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
                 // each pass keeps its four sums in one vector register, where the 4 × 4 block
                 // updated per column made the compiler shuffle x and y into 8-wide vectors.
                 let mut block = [[0.0; GROUP]; GROUP];
-                for (i, row) in block.iter_mut().enumerate().take(count_a) {
+                let mut i = 0;
+                while i + 1 < count_a {
+                    // Two rows of group a per pass: each y loaded once for both.
+                    let (first, second) = block.split_at_mut(i + 1);
+                    let (row0, row1) = (&mut first[i], &mut second[0]);
+                    for (x, y) in ua.iter().zip(ub) {
+                        let (x0, x1) = (x[i], x[i + 1]);
+                        for ((acc0, acc1), &yj) in row0.iter_mut().zip(row1.iter_mut()).zip(y) {
+                            *acc0 += x0 * yj;
+                            *acc1 += x1 * yj;
+                        }
+                    }
+                    i += 2;
+                }
+                if i < count_a {
+                    let row = &mut block[i];
                     for (x, y) in ua.iter().zip(ub) {
                         let xi = x[i];
                         for (acc, &yj) in row.iter_mut().zip(y) {
