@@ -517,9 +517,10 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
                 } else {
                     (&[], &[])
                 };
-                // One pass over the overlap per row of group a (a contact's group has three):
-                // each pass keeps its four sums in one vector register, where the 4 × 4 block
-                // updated per column made the compiler shuffle x and y into 8-wide vectors.
+                // One pass over the overlap per two rows of group a (a contact's group has
+                // three): each pass keeps each row's four sums in one vector register, where the
+                // 4 × 4 block updated per column made the compiler shuffle x and y into 8-wide
+                // vectors (and three rows per pass cost more instructions than two).
                 let mut block = [[0.0; GROUP]; GROUP];
                 let mut i = 0;
                 while i + 1 < count_a {
@@ -681,12 +682,15 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     if largest <= 0.0 || !largest.is_finite() {
         return false;
     }
-    ws.lu.clear();
-    ws.lu.extend_from_slice(&ws.k);
     let epsilon = PROXIMAL * largest;
-    for u in 0..s {
-        ws.lu[u * s + u] += epsilon;
-    }
+    let shifted_k = |lu: &mut Vec<f64>| {
+        lu.clear();
+        lu.extend_from_slice(&ws.k);
+        for u in 0..s {
+            lu[u * s + u] += epsilon;
+        }
+    };
+    shifted_k(&mut ws.lu);
     // Only free rows (no contact on its cone, facet or vertex): K is A + R over them,
     // symmetric and positive semi-definite, and K + εI is factored by Cholesky at half the
     // LU's cost; if rounding makes a pivot non-positive, by LU after all.
@@ -694,11 +698,7 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     let cholesky = symmetric && cholesky_factor(&mut ws.lu, s);
     if !cholesky {
         if symmetric {
-            ws.lu.clear();
-            ws.lu.extend_from_slice(&ws.k);
-            for u in 0..s {
-                ws.lu[u * s + u] += epsilon;
-            }
+            shifted_k(&mut ws.lu);
         }
         if !lu_factor(&mut ws.lu, &mut ws.pivots, s) {
             return false;
