@@ -8,14 +8,17 @@ use parry3d_f64::math::{Pose, Real};
 use parry3d_f64::query::details::{
     contact_manifold_ball_ball_shapes, contact_manifold_capsule_capsule_shapes,
     contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
-    contact_manifold_pfm_pfm_shapes,
+    contact_manifold_pfm_pfm_shapes, contact_manifolds_heightfield_shape_shapes,
+    contact_manifolds_trimesh_shape_shapes, NormalConstraints, NormalConstraintsPair,
 };
-use parry3d_f64::query::TrackedContact;
 use parry3d_f64::query::{
     ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
     Unsupported,
 };
-use parry3d_f64::shape::{HalfSpace, PackedFeatureId, PolygonalFeature, Shape as ParryShape};
+use parry3d_f64::query::{PointQuery, TrackedContact};
+use parry3d_f64::shape::{
+    HalfSpace, PackedFeatureId, PolygonalFeature, PolygonalFeatureMap, Shape as ParryShape, Triangle,
+};
 use std::collections::HashMap;
 
 /// Manifolds of one pair, as parry writes them.
@@ -55,7 +58,9 @@ impl PairCache {
 /// | cylinder, hull | convex–ball | polygonal features | polygonal features | polygonal features | half-space–features (ours) | per triangle |
 ///
 /// "Polygonal features" is GJK/EPA for the normal followed by clipping of the two support
-/// features; "per triangle" runs the convex rules against each triangle near the other shape.
+/// features; "per triangle" runs the convex rules against each triangle near the other shape,
+/// through [`TriangleFaces`]: a convex shape over a triangle's face (a wheel on a height field)
+/// takes the face's normal without GJK/EPA, other triangles parry's polygonal-feature rule.
 /// Static–static pairs never reach this function.
 pub(crate) fn dispatch(
     kind_a: ShapeKind,
@@ -101,6 +106,19 @@ pub(crate) fn dispatch(
         }
         drop_duplicate_points(m);
         Ok(())
+    } else if convex(kind_a) && matches!(kind_b, HeightField | TriMesh)
+        || convex(kind_b) && matches!(kind_a, HeightField | TriMesh)
+    {
+        TriangleFaces.contact_manifolds(
+            pos_ab,
+            shape_a,
+            shape_b,
+            prediction,
+            &mut state.manifolds,
+            &mut state.workspace,
+        )?;
+        state.manifolds.iter_mut().for_each(drop_duplicate_points);
+        Ok(())
     } else {
         DefaultQueryDispatcher.contact_manifolds(
             pos_ab,
@@ -112,6 +130,269 @@ pub(crate) fn dispatch(
         )?;
         state.manifolds.iter_mut().for_each(drop_duplicate_points);
         Ok(())
+    }
+}
+
+/// Parry's per-triangle loops over a height field or triangle mesh, with each triangle against
+/// the convex shape by [`triangle_face_contacts`] where the triangle's face decides the contact,
+/// and by parry's own rule (GJK, then EPA when they overlap) elsewhere. EPA allocates on every
+/// call and a wheel resting on a height field overlaps a triangle or two at every step: the
+/// buggy on its terrain spent 40 µs of its 74 µs step in this collision, most of it in GJK/EPA.
+struct TriangleFaces;
+
+/// Parry's composite loops need the plain queries too; they are parry's.
+impl parry3d_f64::query::QueryDispatcher for TriangleFaces {
+    fn intersection_test(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+    ) -> Result<parry3d_f64::query::ShapeIntersection, Unsupported> {
+        DefaultQueryDispatcher.intersection_test(pos12, g1, g2)
+    }
+
+    fn distance(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+    ) -> Result<parry3d_f64::query::ShapeDistance, Unsupported> {
+        DefaultQueryDispatcher.distance(pos12, g1, g2)
+    }
+
+    fn contact(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+        prediction: Real,
+    ) -> Result<Option<parry3d_f64::query::Contact>, Unsupported> {
+        DefaultQueryDispatcher.contact(pos12, g1, g2, prediction)
+    }
+
+    fn closest_points(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+        max_dist: Real,
+    ) -> Result<parry3d_f64::query::ClosestPoints, Unsupported> {
+        DefaultQueryDispatcher.closest_points(pos12, g1, g2, max_dist)
+    }
+
+    fn cast_shapes(
+        &self,
+        pos12: &Pose,
+        local_vel12: parry3d_f64::math::Vector,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+        options: parry3d_f64::query::ShapeCastOptions,
+    ) -> Result<Option<parry3d_f64::query::ShapeCastHit>, Unsupported> {
+        DefaultQueryDispatcher.cast_shapes(pos12, local_vel12, g1, g2, options)
+    }
+
+    fn cast_shapes_nonlinear(
+        &self,
+        motion1: &parry3d_f64::query::NonlinearRigidMotion,
+        g1: &dyn ParryShape,
+        motion2: &parry3d_f64::query::NonlinearRigidMotion,
+        g2: &dyn ParryShape,
+        start_time: Real,
+        end_time: Real,
+        stop_at_penetration: bool,
+    ) -> Result<Option<parry3d_f64::query::ShapeCastHit>, Unsupported> {
+        DefaultQueryDispatcher.cast_shapes_nonlinear(
+            motion1,
+            g1,
+            motion2,
+            g2,
+            start_time,
+            end_time,
+            stop_at_penetration,
+        )
+    }
+}
+
+impl PersistentQueryDispatcher<(), ()> for TriangleFaces {
+    fn contact_manifolds(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+        prediction: Real,
+        manifolds: &mut Vec<Manifold>,
+        workspace: &mut Option<ContactManifoldsWorkspace>,
+    ) -> Result<(), Unsupported> {
+        if g1.as_heightfield().is_some() || g2.as_heightfield().is_some() {
+            contact_manifolds_heightfield_shape_shapes(self, pos12, g1, g2, prediction, manifolds, workspace);
+            Ok(())
+        } else if g1.as_trimesh().is_some() || g2.as_trimesh().is_some() {
+            contact_manifolds_trimesh_shape_shapes(self, pos12, g1, g2, prediction, manifolds, workspace);
+            Ok(())
+        } else {
+            DefaultQueryDispatcher.contact_manifolds(pos12, g1, g2, prediction, manifolds, workspace)
+        }
+    }
+
+    fn contact_manifold_convex_convex(
+        &self,
+        pos12: &Pose,
+        g1: &dyn ParryShape,
+        g2: &dyn ParryShape,
+        normal_constraints1: Option<&dyn NormalConstraints>,
+        normal_constraints2: Option<&dyn NormalConstraints>,
+        prediction: Real,
+        manifold: &mut Manifold,
+    ) -> Result<(), Unsupported> {
+        let decided = match (g1.as_triangle(), g2.as_triangle()) {
+            (Some(triangle), None) => g2.as_polygonal_feature_map().is_some_and(|(convex, border)| {
+                let faces = TriangleFace { triangle, constraints: normal_constraints1 };
+                faces.contacts(pos12, convex, border, normal_constraints2, prediction, manifold, false)
+            }),
+            (None, Some(triangle)) => g1.as_polygonal_feature_map().is_some_and(|(convex, border)| {
+                let faces = TriangleFace { triangle, constraints: normal_constraints2 };
+                let pos21 = pos12.inverse();
+                faces.contacts(&pos21, convex, border, normal_constraints1, prediction, manifold, true)
+            }),
+            _ => false,
+        };
+        if decided {
+            return Ok(());
+        }
+        // Parry's polygonal-feature rule first keeps the last points while the pair has moved
+        // less than 1 mm and 1° (a parked wheel skips GJK), then copies them to match the new
+        // ones against (allocating at every call); we match contacts by feature ids ourselves.
+        let polygonal = g1.as_polygonal_feature_map().is_some() && g2.as_polygonal_feature_map().is_some();
+        if polygonal && manifold.try_update_contacts_eps(pos12, PARRY_COS_1_DEGREE, 1.0e-6) {
+            return Ok(());
+        }
+        manifold.points.clear();
+        DefaultQueryDispatcher.contact_manifold_convex_convex(
+            pos12,
+            g1,
+            g2,
+            normal_constraints1,
+            normal_constraints2,
+            prediction,
+            manifold,
+        )
+    }
+}
+
+/// cos 1° as parry's polygonal-feature rule rounds it (its `utils::COS_1_DEGREES` is private).
+const PARRY_COS_1_DEGREE: Real = 0.99984769515;
+
+/// One triangle of a height field or mesh, with the normals its neighbours allow (parry's
+/// pseudo-normals, which keep contacts from catching on interior edges).
+struct TriangleFace<'a> {
+    triangle: &'a Triangle,
+    constraints: Option<&'a dyn NormalConstraints>,
+}
+
+impl TriangleFace<'_> {
+    /// The contacts of a convex shape (`convex` with its `border` radius, its frame at `pos_tc`
+    /// in the triangle's frame) with this triangle when the triangle's face decides them;
+    /// `false` (and the manifold untouched) when an edge or vertex of the triangle may.
+    ///
+    /// With n the face normal on the convex's side and s the convex's lowest point along −n at
+    /// signed distance d above the face's plane: for d > `prediction` the plane separates them
+    /// (no contact, exactly); for s's foot on the plane inside the triangle by at least max(0, −d)
+    /// (the depth of an overlap), n is the contact normal — the closest pair, exactly, when they
+    /// are apart, and the face's own normal (which the pseudo-normals would project an EPA
+    /// direction onto) when they overlap by less than the way out over an edge. The points are
+    /// then parry's clipping of the two support features along n, as in its polygonal-feature
+    /// rule. `flipped`: the manifold's shape 1 is the convex.
+    #[allow(clippy::too_many_arguments)]
+    fn contacts(
+        &self,
+        pos_tc: &Pose,
+        convex: &dyn PolygonalFeatureMap,
+        border: Real,
+        convex_constraints: Option<&dyn NormalConstraints>,
+        prediction: Real,
+        manifold: &mut Manifold,
+        flipped: bool,
+    ) -> bool {
+        let Triangle { a, b, c } = *self.triangle;
+        let Some(mut normal) = self.triangle.normal() else {
+            return false;
+        };
+        if (pos_tc.translation - a).dot(normal) < 0.0 {
+            normal = -normal;
+        }
+        let normal_c = pos_tc.rotation.inverse() * -normal;
+        let support_c = convex.local_support_point(normal_c);
+        let support = *pos_tc * support_c;
+        let height = (support - a).dot(normal);
+        let distance = height - border;
+        if distance > prediction {
+            manifold.points.clear();
+            return true;
+        }
+        let foot = support - normal * height;
+        // The foot's distance inside each edge (the edges run counter-clockwise about n).
+        let ccw = (b - a).cross(c - a).dot(normal) > 0.0;
+        let inside = |p: parry3d_f64::math::Vector, q: parry3d_f64::math::Vector| {
+            let edge = if ccw { q - p } else { p - q };
+            normal.cross(edge).dot(foot - p) / edge.length()
+        };
+        let margin = inside(a, b).min(inside(b, c)).min(inside(c, a));
+        if margin.is_nan() || margin < (-distance).max(0.0) {
+            // Before GJK: along the axis from the triangle's point nearest the convex's origin
+            // (the triangle's support point along it) to that origin, the gap is a lower bound
+            // on their distance, and beyond the margin it separates them exactly. It does for
+            // most triangles beside the one a wheel stands on: their planes pass near its
+            // lowest point, the wheel itself is centimetres above them.
+            let origin = pos_tc.translation;
+            let nearest = self.triangle.project_local_point(origin, true).point;
+            if let Some(axis) = (origin - nearest).try_normalize() {
+                let lowest = *pos_tc * convex.local_support_point(pos_tc.rotation.inverse() * -axis);
+                if (lowest - nearest).dot(axis) - border > prediction {
+                    manifold.points.clear();
+                    return true;
+                }
+            }
+            return false;
+        }
+        let (mut n_t, mut n_c) = (normal, normal_c);
+        let constraints = (self.constraints, convex_constraints);
+        if !constraints.project_local_normals(pos_tc, &mut n_t, &mut n_c) || n_t.dot(normal) < 1.0 - 1e-12 {
+            return false;
+        }
+        let mut feature = PolygonalFeature::default();
+        convex.local_support_feature_toward(normal_c, support_c, &mut feature);
+        let face = PolygonalFeature::from(*self.triangle);
+        manifold.points.clear();
+        PolygonalFeature::contacts(
+            pos_tc,
+            &pos_tc.inverse(),
+            normal,
+            normal_c,
+            &face,
+            &feature,
+            manifold,
+            flipped,
+        );
+        if manifold.points.is_empty() {
+            // Clipping at the features' boundaries can keep nothing: the closest pair then.
+            let contact = TrackedContact::flipped(
+                foot,
+                support_c,
+                PackedFeatureId::face(0),
+                feature.fid,
+                height,
+                flipped,
+            );
+            manifold.points.push(contact);
+        }
+        for point in &mut manifold.points {
+            let on_convex = if flipped { &mut point.local_p1 } else { &mut point.local_p2 };
+            *on_convex += normal_c * border;
+            point.dist -= border;
+        }
+        (manifold.local_n1, manifold.local_n2) =
+            if flipped { (normal_c, normal) } else { (normal, normal_c) };
+        true
     }
 }
 
@@ -305,6 +586,145 @@ mod tests {
         for p in points {
             assert!(p.dist.abs() < 1e-12, "distance {}", p.dist);
         }
+    }
+
+    /// Convex shapes over one triangle, at random poses near its face: where the face decides
+    /// (`TriangleFace::contacts` returns true), its manifold is parry's GJK/EPA one — the same
+    /// normal, the same distances, each point one of parry's (parry adds GJK's closest pair as
+    /// an extra point) — in both orders of the pair; and the plane's early out is never wrong.
+    #[test]
+    fn a_convex_over_a_triangle_face_gets_parrys_manifold_without_gjk() {
+        use parry3d_f64::shape::{Capsule, Cylinder};
+        use rand::{Rng, SeedableRng};
+        let triangle = Triangle::new(
+            Vector::new(-0.4, -0.3, 0.02),
+            Vector::new(0.5, -0.2, -0.03),
+            Vector::new(0.0, 0.45, 0.05),
+        );
+        // (name, shape, polygonal: its support features do not depend on the hint). A cylinder's
+        // cap is a square turned toward the hint — parry's is GJK's closest point, ours the
+        // support point —, so its corners away from the closest point differ.
+        let shapes: [(&str, Box<dyn ParryShape>, bool); 3] = [
+            ("wheel", Box::new(Cylinder::new(0.05, 0.3)), false),
+            ("box", Box::new(Cuboid::new(Vector::new(0.1, 0.06, 0.04))), true),
+            ("capsule", Box::new(Capsule::new_x(0.1, 0.03)), true),
+        ];
+        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+        let (mut decided, mut compared, mut apart) = (0, 0, 0);
+        for (name, shape, polygonal) in &shapes {
+            for _ in 0..400 {
+                let rotation = Rotation::from_scaled_axis(Vector::new(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                ));
+                // Its lowest point toward the triangle at a height of −2 mm … +3 cm.
+                let mut pos_tc = Pose::from_parts(
+                    Vector::new(rng.random_range(-0.3..0.3), rng.random_range(-0.25..0.3), 0.0),
+                    rotation,
+                );
+                let normal = triangle.normal().unwrap();
+                let (features, border) = shape.as_polygonal_feature_map().unwrap();
+                let lowest = pos_tc * features.local_support_point(pos_tc.rotation.inverse() * -normal);
+                let height = (lowest - triangle.a).dot(normal) - border;
+                pos_tc.translation += normal * (rng.random_range(-0.002..0.03) - height);
+                let prediction = 0.01;
+                for flipped in [false, true] {
+                    let face = TriangleFace { triangle: &triangle, constraints: None };
+                    let mut ours = Manifold::new();
+                    if !face.contacts(&pos_tc, features, border, None, prediction, &mut ours, flipped) {
+                        continue;
+                    }
+                    decided += 1;
+                    let mut parry = Manifold::new();
+                    if flipped {
+                        let pos_ct = pos_tc.inverse();
+                        DefaultQueryDispatcher
+                            .contact_manifold_convex_convex(
+                                &pos_ct, &**shape, &triangle, None, None, prediction, &mut parry,
+                            )
+                            .unwrap();
+                    } else {
+                        DefaultQueryDispatcher
+                            .contact_manifold_convex_convex(
+                                &pos_tc, &triangle, &**shape, None, None, prediction, &mut parry,
+                            )
+                            .unwrap();
+                    }
+                    if ours.points.is_empty() {
+                        // The plane separates them by more than the margin.
+                        assert!(parry.points.is_empty(), "{name}: parry found {:?}", parry.points);
+                        apart += 1;
+                        continue;
+                    }
+                    compared += 1;
+                    assert!(
+                        ours.local_n1.dot(parry.local_n1) > 1.0 - 1e-9,
+                        "{name}: {:?} {:?}",
+                        ours.local_n1,
+                        parry.local_n1
+                    );
+                    assert!(
+                        ours.local_n2.dot(parry.local_n2) > 1.0 - 1e-9,
+                        "{name}: {:?} {:?}",
+                        ours.local_n2,
+                        parry.local_n2
+                    );
+                    // Ours exactly: each pair of points lies along the face normal at its
+                    // distance, the one on the triangle's plane, the other on the shape.
+                    let sides = |c: &TrackedContact<()>| {
+                        if flipped {
+                            (c.local_p2, c.local_p1)
+                        } else {
+                            (c.local_p1, c.local_p2)
+                        }
+                    };
+                    for c in &ours.points {
+                        let (on_triangle, on_convex) = sides(c);
+                        let on_convex_t = pos_tc * on_convex;
+                        assert!((on_triangle - triangle.a).dot(normal).abs() < 1e-12, "{name}: {c:?}");
+                        assert!(
+                            (on_convex_t - on_triangle - normal * c.dist).length() < 1e-12,
+                            "{name}: {c:?}"
+                        );
+                        // (A rounded shape's far points are its core's plus the border along the
+                        // normal, as in parry: inside it, not on its surface.)
+                        let solid = shape.project_local_point(on_convex, true).point;
+                        assert!((solid - on_convex).length() < 1e-9, "{name}: {c:?} outside the shape");
+                    }
+                    // The closest distance is parry's (GJK's).
+                    let closest =
+                        |m: &Manifold| m.points.iter().map(|c| c.dist).fold(f64::INFINITY, f64::min);
+                    assert!((closest(&ours) - closest(&parry)).abs() < 1e-6, "{name}: {ours:?} {parry:?}");
+                    if !polygonal {
+                        continue;
+                    }
+                    // Parry's within GJK's tolerance (a normal off by up to ~1e-5 rad moves points
+                    // 0.3 m away by a few 1e-6 m; a curved cap's square turns with the hint).
+                    for p in &ours.points {
+                        let twin = parry.points.iter().find(|q| {
+                            (q.local_p1 - p.local_p1).length() < 1e-5
+                                && (q.local_p2 - p.local_p2).length() < 1e-5
+                        });
+                        let twin =
+                            twin.unwrap_or_else(|| panic!("{name}: {p:?} is not in {:?}", parry.points));
+                        assert!(
+                            (twin.dist - p.dist).abs() < 1e-5,
+                            "{name}: {} against {}",
+                            p.dist,
+                            twin.dist
+                        );
+                        assert_eq!((twin.fid1, twin.fid2), (p.fid1, p.fid2), "{name}");
+                    }
+                    let extra = parry.points.len() - ours.points.len();
+                    assert!(extra <= 1, "{name}: parry {:?} ours {:?}", parry.points, ours.points);
+                }
+            }
+        }
+        assert!(
+            decided > 600 && compared > 300 && apart > 50,
+            "{decided} decided, {compared} compared, {apart} apart"
+        );
     }
 
     /// A capsule lying across a box face (a ragdoll's forearm on another's hand): parry's
