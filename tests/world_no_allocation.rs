@@ -134,6 +134,70 @@ fn collision_detection_allocates_nothing_in_steady_state() {
     assert_eq!(count, 0, "CollisionWorld::detect allocated {count} times in 10 calls");
 }
 
+/// A wheel (cylinder on its rim) and a box resting on a bumpy height field: each triangle under
+/// them keeps its manifold from call to call (parry's own loop rebuilt its list at every call).
+#[test]
+fn collision_with_a_height_field_allocates_nothing_in_steady_state() {
+    use gelenk::collision::{CollisionOptions, CollisionWorld};
+    use nalgebra::DMatrix;
+    let mut b = ModelBuilder::new();
+    let wheel = Shape::Cylinder { radius: 0.3, length: 0.2 };
+    b.add_body(
+        BodySpec::new(
+            "wheel",
+            "universe",
+            Joint::Free,
+            Transform::identity(),
+            RigidInertia::solid_box(5.0, Vec3::repeat(0.4)),
+        )
+        .with_collision(wheel, Transform::identity()),
+    );
+    b.add_body(
+        BodySpec::new(
+            "box",
+            "universe",
+            Joint::Free,
+            Transform::identity(),
+            RigidInertia::solid_box(0.5, Vec3::repeat(0.1)),
+        )
+        .with_collision(Shape::Box { size: Vec3::new(0.3, 0.2, 0.1) }, Transform::identity()),
+    );
+    let model = b.build().unwrap();
+    let mut data = gelenk::Data::new(&model);
+    // ±5 cm bumps over 2 m on 25 cm cells, as in models/buggy_terrain.toml.
+    let (n, size) = (33, 8.0);
+    let height = |x: f64, y: f64| 0.05 * (std::f64::consts::PI * x).sin() * (std::f64::consts::PI * y).cos();
+    let at = |i: usize| -size / 2.0 + i as f64 * size / (n - 1) as f64;
+    let terrain = Shape::HeightField {
+        heights: DMatrix::from_fn(n, n, |i, j| height(at(i), at(j))),
+        size_x: size,
+        size_y: size,
+    };
+    let mut cw = CollisionWorld::new(CollisionOptions::default());
+    let mb = cw.add_model(&model, &MeshOptions::default()).unwrap();
+    cw.add_static("terrain", &terrain, Transform::identity(), &MeshOptions::default()).unwrap();
+    let mut q = model.neutral_configuration();
+    // The cylinder's axis is its z: turned onto y, it stands on its rim (a wheel) at (0.3, 0.2).
+    let axle = nalgebra::UnitQuaternion::from_axis_angle(&Vec3::x_axis(), std::f64::consts::FRAC_PI_2);
+    let (x, y) = (0.3, 0.2);
+    q.fixed_rows_mut::<3>(0).copy_from(&Vec3::new(x, y, height(x, y) + 0.3 - 1e-4));
+    q.fixed_rows_mut::<4>(3).copy_from(&axle.coords);
+    let (x, y) = (-0.6, 0.9);
+    q.fixed_rows_mut::<3>(7).copy_from(&Vec3::new(x, y, height(x, y) + 0.05 - 1e-4));
+    gelenk::algorithms::forward_kinematics(&model, &mut data, &q).unwrap();
+    cw.update_multibody(mb, &data).unwrap();
+    for _ in 0..5 {
+        cw.detect();
+    }
+    assert!(cw.detect().len() >= 2, "the wheel and the box touch the terrain");
+    let count = allocations_during(|| {
+        for _ in 0..10 {
+            cw.detect();
+        }
+    });
+    assert_eq!(count, 0, "CollisionWorld::detect allocated {count} times in 10 calls");
+}
+
 #[test]
 fn smooth_steps_allocate_nothing() {
     // RK4 steps of the four-bar (constrained stages and the projection), and Dormand–Prince

@@ -8,8 +8,8 @@ use parry3d_f64::math::{Pose, Real};
 use parry3d_f64::query::details::{
     contact_manifold_ball_ball_shapes, contact_manifold_capsule_capsule_shapes,
     contact_manifold_convex_ball_shapes, contact_manifold_cuboid_cuboid_shapes,
-    contact_manifold_pfm_pfm_shapes, contact_manifolds_heightfield_shape_shapes,
-    contact_manifolds_trimesh_shape_shapes, NormalConstraints, NormalConstraintsPair,
+    contact_manifold_pfm_pfm_shapes, contact_manifolds_trimesh_shape_shapes, NormalConstraints,
+    NormalConstraintsPair,
 };
 use parry3d_f64::query::{
     ContactManifold, ContactManifoldsWorkspace, DefaultQueryDispatcher, PersistentQueryDispatcher,
@@ -30,6 +30,9 @@ pub(crate) struct PairState {
     pub manifolds: Vec<Manifold>,
     pub workspace: Option<ContactManifoldsWorkspace>,
     pub last_step: u64,
+    /// Per manifold, whether this call's height-field loop reached its triangle
+    /// ([`convex_against_height_field`]).
+    visited: Vec<bool>,
 }
 
 /// Per-pair state keyed by (collider A, collider B).
@@ -106,9 +109,11 @@ pub(crate) fn dispatch(
         }
         drop_duplicate_points(m);
         Ok(())
-    } else if convex(kind_a) && matches!(kind_b, HeightField | TriMesh)
-        || convex(kind_b) && matches!(kind_a, HeightField | TriMesh)
-    {
+    } else if convex(kind_a) && kind_b == HeightField || convex(kind_b) && kind_a == HeightField {
+        convex_against_height_field(pos_ab, shape_a, shape_b, prediction, state)?;
+        state.manifolds.iter_mut().for_each(drop_duplicate_points);
+        Ok(())
+    } else if convex(kind_a) && kind_b == TriMesh || convex(kind_b) && kind_a == TriMesh {
         TriangleFaces.contact_manifolds(
             pos_ab,
             shape_a,
@@ -133,7 +138,8 @@ pub(crate) fn dispatch(
     }
 }
 
-/// Parry's per-triangle loops over a height field or triangle mesh, with each triangle against
+/// Parry's per-triangle loop over a triangle mesh (a height field's is
+/// [`convex_against_height_field`]), with each triangle against
 /// the convex shape by [`TriangleFace::contacts`] where the triangle's face decides the contact,
 /// and by parry's own rule (GJK, then EPA when they overlap) elsewhere. EPA allocates on every
 /// call and a wheel resting on a height field overlaps a triangle or two at every step: the
@@ -223,10 +229,7 @@ impl PersistentQueryDispatcher<(), ()> for TriangleFaces {
         manifolds: &mut Vec<Manifold>,
         workspace: &mut Option<ContactManifoldsWorkspace>,
     ) -> Result<(), Unsupported> {
-        if g1.as_heightfield().is_some() || g2.as_heightfield().is_some() {
-            contact_manifolds_heightfield_shape_shapes(self, pos12, g1, g2, prediction, manifolds, workspace);
-            Ok(())
-        } else if g1.as_trimesh().is_some() || g2.as_trimesh().is_some() {
+        if g1.as_trimesh().is_some() || g2.as_trimesh().is_some() {
             contact_manifolds_trimesh_shape_shapes(self, pos12, g1, g2, prediction, manifolds, workspace);
             Ok(())
         } else {
@@ -277,6 +280,85 @@ impl PersistentQueryDispatcher<(), ()> for TriangleFaces {
             manifold,
         )
     }
+}
+
+/// Marks a manifold of [`convex_against_height_field`] that no triangle holds.
+const FREE_TRIANGLE: u32 = u32::MAX;
+
+/// A convex shape against a height field (either of A and B), triangle by triangle as
+/// [`TriangleFaces`] handles them, each triangle with its own manifold (the triangle's index as
+/// the height field's sub-shape id, as parry numbers them) and parry's pseudo-normals. Parry's own
+/// loop rebuilds its list of manifolds at every call (a dozen allocations per wheel and step);
+/// here the manifolds of triangles left behind are emptied and handed to the next new ones.
+fn convex_against_height_field(
+    pos_ab: &Pose,
+    shape_a: &dyn ParryShape,
+    shape_b: &dyn ParryShape,
+    prediction: Real,
+    state: &mut PairState,
+) -> Result<(), Unsupported> {
+    use parry3d_f64::bounding_volume::BoundingVolume;
+    let (field, convex, field_is_a) = match (shape_a.as_heightfield(), shape_b.as_heightfield()) {
+        (Some(field), None) => (field, shape_b, true),
+        (None, Some(field)) => (field, shape_a, false),
+        _ => return Err(Unsupported),
+    };
+    let id = |m: &Manifold| if field_is_a { m.subshape1 } else { m.subshape2 };
+    let pos_field_convex = if field_is_a { *pos_ab } else { pos_ab.inverse() };
+    let aabb = convex.compute_aabb(&pos_field_convex).loosened(prediction);
+    let (manifolds, visited) = (&mut state.manifolds, &mut state.visited);
+    visited.clear();
+    visited.resize(manifolds.len(), false);
+    field.map_elements_in_local_aabb(&aabb, &mut |i, triangle| {
+        let k = match manifolds.iter().position(|m| id(m) == i) {
+            Some(k) => k,
+            None => {
+                let (subshape1, subshape2) = if field_is_a { (i, 0) } else { (0, i) };
+                match manifolds.iter().position(|m| id(m) == FREE_TRIANGLE) {
+                    Some(k) => {
+                        (manifolds[k].subshape1, manifolds[k].subshape2) = (subshape1, subshape2);
+                        k
+                    }
+                    None => {
+                        manifolds.push(Manifold::with_data(subshape1, subshape2, ()));
+                        visited.push(false);
+                        manifolds.len() - 1
+                    }
+                }
+            }
+        };
+        visited[k] = true;
+        let pseudo_normals = field.triangle_normal_constraints(i);
+        let constraints = pseudo_normals.as_ref().map(|n| n as &dyn NormalConstraints);
+        let m = &mut manifolds[k];
+        // Unsupported shapes are refused when colliders are made; the loop goes on regardless.
+        let _ = if field_is_a {
+            TriangleFaces.contact_manifold_convex_convex(
+                pos_ab,
+                triangle,
+                convex,
+                constraints,
+                None,
+                prediction,
+                m,
+            )
+        } else {
+            TriangleFaces.contact_manifold_convex_convex(
+                pos_ab,
+                convex,
+                triangle,
+                None,
+                constraints,
+                prediction,
+                m,
+            )
+        };
+    });
+    for (m, _) in manifolds.iter_mut().zip(visited.iter()).filter(|(_, seen)| !**seen) {
+        m.points.clear();
+        (m.subshape1, m.subshape2) = (FREE_TRIANGLE, FREE_TRIANGLE);
+    }
+    Ok(())
 }
 
 /// cos 1° as parry's polygonal-feature rule rounds it (its `utils::COS_1_DEGREES` is private).
