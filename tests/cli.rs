@@ -235,3 +235,23 @@ fn report_speed_error_quick_writes_sane_files() {
     assert!(svg.contains("<svg") && svg.contains("Pareto front"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `bench world --controls` steps a scene as `simulate` does, its vehicle commands applied: the
+/// buggy's motors then add rows that the standing buggy of a plain `bench world` never has.
+#[test]
+fn bench_world_applies_vehicle_commands_when_asked() {
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/buggy_drive.toml");
+    let scene = scene.display().to_string();
+    let max_rows = |controls: bool| {
+        let mut args = vec!["bench", "world", &scene, "--rounds", "1", "--steps", "600", "--json"];
+        if controls {
+            args.push("--controls");
+        }
+        let out = gelenk(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["max_rows"].as_u64().unwrap()
+    };
+    let (standing, driven) = (max_rows(false), max_rows(true));
+    assert!(driven > standing, "{driven} rows driven, {standing} standing");
+}

@@ -202,6 +202,10 @@ enum BenchCommand {
         /// Keep sleeping on (off by default so that every step does the full work).
         #[arg(long)]
         sleep: bool,
+        /// Apply a scene file's vehicle commands before each step, as `simulate` does (off by
+        /// default: the world alone is stepped, a buggy stands where it starts).
+        #[arg(long)]
+        controls: bool,
         /// Episodes timed; the reported figures are medians over episodes.
         #[arg(long, default_value_t = 5)]
         rounds: usize,
@@ -241,8 +245,16 @@ fn main() -> ExitCode {
             bench_dynamics(&model, floating, json, rounds)
         }
         Command::Bench {
-            what: BenchCommand::World { scene, solver, steps, settle, sleep, rounds, json },
-        } => bench_world(&scene, solver.as_deref(), steps, settle, sleep, rounds, json),
+            what: BenchCommand::World { scene, solver, steps, settle, sleep, controls, rounds, json },
+        } => bench_world(
+            &scene,
+            solver.as_deref(),
+            steps,
+            settle,
+            BenchOptions { sleep, controls },
+            rounds,
+            json,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -590,7 +602,7 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
 fn load_world(path: &Path) -> Result<gelenk::world::World, String> {
     use gelenk::collision::MeshOptions;
     use gelenk::world::{World, WorldOptions};
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml")) {
+    if is_mjcf(path) {
         let scene = gelenk::io::mjcf::load_file(path).map_err(|e| e.to_string())?;
         // MuJoCo's friction model (`<option cone>`) and its pair rule (the larger of the two
         // geoms' sliding friction; one world coefficient, the largest, when geoms differ).
@@ -613,12 +625,55 @@ fn load_world(path: &Path) -> Result<gelenk::world::World, String> {
     }
 }
 
+/// What `bench world` steps: a scene file's scene (whose vehicle commands it may apply), or an
+/// MJCF file's world.
+enum BenchTarget {
+    Scene(Box<gelenk::io::scene::Scene>),
+    Mjcf(Box<gelenk::world::World>),
+}
+
+impl BenchTarget {
+    fn load(path: &Path) -> Result<Self, String> {
+        if is_mjcf(path) {
+            Ok(BenchTarget::Mjcf(Box::new(load_world(path)?)))
+        } else {
+            Ok(BenchTarget::Scene(Box::new(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?)))
+        }
+    }
+
+    fn world(&mut self) -> &mut gelenk::world::World {
+        match self {
+            BenchTarget::Scene(scene) => &mut scene.world,
+            BenchTarget::Mjcf(world) => world,
+        }
+    }
+
+    /// One step, after the scene's due vehicle commands when `controls` is set.
+    fn step(&mut self, controls: bool) -> Result<&gelenk::world::StepStats, String> {
+        if let (BenchTarget::Scene(scene), true) = (&mut *self, controls) {
+            scene.apply_controls().map_err(|e| e.to_string())?;
+        }
+        self.world().step().map_err(|e| e.to_string())
+    }
+}
+
+/// `path` names an MJCF file (by its extension), not a scene file.
+fn is_mjcf(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml"))
+}
+
+/// Switches of `bench world`: sleeping kept on, vehicle commands applied.
+struct BenchOptions {
+    sleep: bool,
+    controls: bool,
+}
+
 fn bench_world(
     path: &Path,
     solver: Option<&str>,
     steps: usize,
     settle: usize,
-    sleep: bool,
+    BenchOptions { sleep, controls }: BenchOptions,
     rounds: usize,
     as_json: bool,
 ) -> Result<(), String> {
@@ -629,7 +684,8 @@ fn bench_world(
     let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
         (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
     for _ in 0..rounds.max(1) {
-        let mut world = load_world(path)?;
+        let mut target = BenchTarget::load(path)?;
+        let world = target.world();
         if let Some(s) = &solvers {
             world.set_solvers(s.clone());
         }
@@ -637,7 +693,7 @@ fn bench_world(
             world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..world.options().sleep });
         }
         for _ in 0..settle {
-            world.step().map_err(|e| e.to_string())?;
+            target.step(controls)?;
         }
         let mut times = Vec::with_capacity(steps);
         let mut phase = [0u64; 6];
@@ -645,7 +701,7 @@ fn bench_world(
         solver_usage.clear();
         for _ in 0..steps {
             let start = Instant::now();
-            let stats = world.step().map_err(|e| e.to_string())?;
+            let stats = target.step(controls)?;
             times.push(start.elapsed().as_secs_f64() * 1e6);
             for (total, ns) in phase.iter_mut().zip(stats.phase_ns) {
                 *total += ns;
