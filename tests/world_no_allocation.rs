@@ -16,18 +16,20 @@ fn allocations_during(f: impl FnOnce()) -> usize {
     allocations_in(f).0
 }
 
+/// A free body on the universe with one collider at its origin.
+fn free_body(name: impl Into<String>, inertia: RigidInertia, shape: Shape) -> BodySpec {
+    BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
+        .with_collision(shape, Transform::identity())
+}
+
+/// A free cube of 0.5 kg.
+fn free_cube(name: impl Into<String>, side: f64) -> BodySpec {
+    free_body(name, RigidInertia::solid_box(0.5, Vec3::repeat(side)), Shape::Box { size: Vec3::repeat(side) })
+}
+
 fn lone_box(side: f64) -> gelenk::Model {
     let mut b = ModelBuilder::new();
-    b.add_body(
-        BodySpec::new(
-            "box",
-            "universe",
-            Joint::Free,
-            Transform::identity(),
-            RigidInertia::solid_box(0.5, Vec3::repeat(side)),
-        )
-        .with_collision(Shape::Box { size: Vec3::repeat(side) }, Transform::identity()),
-    );
+    b.add_body(free_cube("box", side));
     b.build().unwrap()
 }
 
@@ -94,16 +96,7 @@ fn collision_detection_allocates_nothing_in_steady_state() {
     use gelenk::collision::{CollisionOptions, CollisionWorld};
     let mut b = ModelBuilder::new();
     for k in 0..3 {
-        b.add_body(
-            BodySpec::new(
-                format!("box{k}"),
-                "universe",
-                Joint::Free,
-                Transform::identity(),
-                RigidInertia::solid_box(0.5, Vec3::repeat(0.1)),
-            )
-            .with_collision(Shape::Box { size: Vec3::repeat(0.1) }, Transform::identity()),
-        );
+        b.add_body(free_cube(format!("box{k}"), 0.1));
     }
     let model = b.build().unwrap();
     let mut data = gelenk::Data::new(&model);
@@ -141,27 +134,10 @@ fn collision_with_a_height_field_allocates_nothing_in_steady_state() {
     use gelenk::collision::{CollisionOptions, CollisionWorld};
     use nalgebra::DMatrix;
     let mut b = ModelBuilder::new();
-    let wheel = Shape::Cylinder { radius: 0.3, length: 0.2 };
-    b.add_body(
-        BodySpec::new(
-            "wheel",
-            "universe",
-            Joint::Free,
-            Transform::identity(),
-            RigidInertia::solid_box(5.0, Vec3::repeat(0.4)),
-        )
-        .with_collision(wheel, Transform::identity()),
-    );
-    b.add_body(
-        BodySpec::new(
-            "box",
-            "universe",
-            Joint::Free,
-            Transform::identity(),
-            RigidInertia::solid_box(0.5, Vec3::repeat(0.1)),
-        )
-        .with_collision(Shape::Box { size: Vec3::new(0.3, 0.2, 0.1) }, Transform::identity()),
-    );
+    // Only the geometry matters here (detection alone, no stepping).
+    let inertia = RigidInertia::solid_box(1.0, Vec3::repeat(0.1));
+    b.add_body(free_body("wheel", inertia, Shape::Cylinder { radius: 0.3, length: 0.2 }));
+    b.add_body(free_body("box", inertia, Shape::Box { size: Vec3::new(0.3, 0.2, 0.1) }));
     let model = b.build().unwrap();
     let mut data = gelenk::Data::new(&model);
     // ±5 cm bumps over 2 m on 25 cm cells, as in models/buggy_terrain.toml.
