@@ -24,6 +24,9 @@ fn check(
     if x.len() != expected {
         return Err(DynamicsError::DimensionMismatch { what, expected, got: x.len() });
     }
+    if crate::math::all_finite(x.as_slice()) {
+        return Ok(());
+    }
     match x.iter().position(|e| !e.is_finite()) {
         None => Ok(()),
         Some(index) => Err(DynamicsError::NonFinite {

@@ -12,7 +12,7 @@ use super::jacobian::compute_joint_jacobians;
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::math::Transform;
-use crate::model::{Model, NO_DOF};
+use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
 /// Computes the full symmetric mass matrix `M(q)` (kg, kg·m, kg·m²) into `data.mass_matrix` and
@@ -77,12 +77,14 @@ fn composite_rigid_body_entries(
         let composite = data.ycrb[i];
         for k in iv..iv + nv {
             let f_reference = composite.mul_motion(&data.j_crba[k]);
-            let (mut m, mut up) = (k, 0);
-            while m != NO_DOF {
+            let value = data.j_crba[k].dot(&f_reference);
+            store(data, k, 0, k, value);
+            // k's ancestors nearest first: the path's list, not a walk of parent links (each
+            // step of which waits for the last load).
+            let path = &model.dof_path[model.dof_path_start[k]..model.dof_path_start[k + 1]];
+            for (up, &m) in path.iter().rev().enumerate() {
                 let value = data.j_crba[m].dot(&f_reference);
-                store(data, k, up, m, value);
-                m = model.dof_parent[m];
-                up += 1;
+                store(data, k, up + 1, m, value);
             }
         }
         if p != 0 {

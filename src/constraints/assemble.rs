@@ -385,11 +385,10 @@ impl ProblemBuilder {
             (x, y) => [x.map(|x| (x, a, none)), y.map(|y| (y, b, none))],
         };
         lanes.clear();
+        // J v_free of the three rows (and the unused lane), summed in path order.
         let mut velocity = [0.0; 4];
-        let mut add_velocity = |x: &[f64; 4], v: f64| {
-            for (total, x) in velocity.iter_mut().zip(x) {
-                *total += x * v;
-            }
+        let add_velocity = |velocity: [f64; 4], x: &[f64; 4], v: f64| {
+            [velocity[0] + x[0] * v, velocity[1] + x[1] * v, velocity[2] + x[2] * v, velocity[3] + x[3] * v]
         };
         // Per group: its block and its stretches of consecutive columns (first column, first
         // lane, length) in `stretches`, from which W's runs are copied row by row.
@@ -421,7 +420,7 @@ impl ProblemBuilder {
                 // The path's rates run from its last dof up: reversed, the chain root first.
                 lanes.extend(first.iter().rev().map(|(_, u)| lane(u)));
                 for ((c, _), x) in first.iter().rev().zip(&lanes[offset..]) {
-                    add_velocity(x, v_free[*c]);
+                    velocity = add_velocity(velocity, x, v_free[*c]);
                 }
                 if let Some((factor, first_dof)) = factor {
                     factor.scale_chain_lanes(first_dof + first[0].0 - block_col, &mut lanes[offset..]);
@@ -443,7 +442,7 @@ impl ProblemBuilder {
                     }
                 }
                 for &k in pattern.iter() {
-                    add_velocity(&u[k], v_free[block_col + k]);
+                    velocity = add_velocity(velocity, &u[k], v_free[block_col + k]);
                 }
                 if let Some((factor, first_dof)) = factor {
                     factor.scale_pattern_lanes(first_dof, pattern, u);
@@ -895,10 +894,7 @@ impl<'a> TreeFactor<'a> {
             if up == 0.0 || !self.coupled[dof] {
                 continue;
             }
-            let row = &self.packed[self.dof_path_start[dof] + dof..][..p];
-            for (uq, &l) in u[..p].iter_mut().zip(row) {
-                *uq -= l * up;
-            }
+            axpy(&mut u[..p], -up, &self.packed[self.dof_path_start[dof] + dof..][..p]);
         }
         for (p, x) in u.iter_mut().enumerate() {
             *x *= self.inv_sqrt_d[dof_at(p)];
@@ -956,11 +952,7 @@ impl<'a> TreeFactor<'a> {
             }
             let (mut start, mut end) = (self.run_start[row], row);
             loop {
-                for (w, l) in
-                    w[start - first_dof..end - first_dof].iter_mut().zip(self.stretch(row, start, end))
-                {
-                    *w -= l * wk;
-                }
+                axpy(&mut w[start - first_dof..end - first_dof], -wk, self.stretch(row, start, end));
                 let next = self.dof_parent[start];
                 if next == NO_DOF {
                     break;
@@ -1129,6 +1121,26 @@ pub(crate) fn runs_dot(sp: &RowSparsity, a: &[(usize, usize, usize)], b: &[(usiz
         }
     }
     total
+}
+
+/// `x ← x + a y`, four entries at a time: the loops that call it are short (a dof's ancestors,
+/// a row's span), too short for the compiler's own vector loop, which unrolls by the vector
+/// width times four and leaves anything shorter to one entry at a time. Each entry gets the
+/// same operations as a plain loop, so results are bit for bit the same.
+#[inline]
+pub(crate) fn axpy(x: &mut [f64], a: f64, y: &[f64]) {
+    debug_assert_eq!(x.len(), y.len());
+    let mut cx = x.chunks_exact_mut(4);
+    let mut cy = y.chunks_exact(4);
+    for (p, q) in (&mut cx).zip(&mut cy) {
+        p[0] += a * q[0];
+        p[1] += a * q[1];
+        p[2] += a * q[2];
+        p[3] += a * q[3];
+    }
+    for (p, q) in cx.into_remainder().iter_mut().zip(cy.remainder()) {
+        *p += a * q;
+    }
 }
 
 /// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is

@@ -33,3 +33,19 @@ pub type Mat3 = nalgebra::Matrix3<f64>;
 pub type Vec6 = nalgebra::Vector6<f64>;
 /// 6×6 matrix of `f64`, blocks ordered (linear, angular).
 pub type Mat6 = nalgebra::Matrix6<f64>;
+
+/// Whether every entry is finite: x·0 is 0 for a finite x and NaN otherwise, summed in four
+/// lanes without a branch per entry (a short-circuiting `all` neither vectorizes nor pipelines;
+/// W's values are checked on every solve, q and v on every step).
+pub(crate) fn all_finite(x: &[f64]) -> bool {
+    let mut lanes = [0.0f64; 4];
+    let chunks = x.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for (lane, v) in lanes.iter_mut().zip(c) {
+            *lane += v * 0.0;
+        }
+    }
+    let tail: f64 = rest.iter().map(|v| v * 0.0).sum();
+    (lanes[0] + lanes[1] + lanes[2] + lanes[3] + tail) == 0.0
+}

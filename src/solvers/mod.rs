@@ -18,6 +18,7 @@ pub use pgs::{PgsSolver, PgsWorkspace};
 pub use residuals::{residuals, QpResiduals, Residuals};
 
 use crate::constraints::{ConstraintProblem, RowLaw};
+use crate::math::all_finite;
 use nalgebra::DVector;
 use thiserror::Error;
 
@@ -95,22 +96,6 @@ pub trait ConstraintSolver {
     fn set_certified_tolerance(&mut self, _tolerance: f64) {}
 }
 
-/// Whether every entry is finite: x·0 is 0 for a finite x and NaN otherwise, summed in four
-/// lanes without a branch per entry (a short-circuiting `all` neither vectorizes nor pipelines;
-/// W's values are checked on every solve).
-fn all_finite(x: &[f64]) -> bool {
-    let mut lanes = [0.0f64; 4];
-    let chunks = x.chunks_exact(4);
-    let rest = chunks.remainder();
-    for c in chunks {
-        for (lane, v) in lanes.iter_mut().zip(c) {
-            *lane += v * 0.0;
-        }
-    }
-    let tail: f64 = rest.iter().map(|v| v * 0.0).sum();
-    (lanes[0] + lanes[1] + lanes[2] + lanes[3] + tail) == 0.0
-}
-
 /// Checks the problem's sizes and finiteness once, for every solver.
 pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverError> {
     let n = problem.rows();
@@ -180,7 +165,7 @@ pub(crate) fn check_problem(problem: &ConstraintProblem) -> Result<(), SolverErr
 
 #[cfg(test)]
 mod tests {
-    use super::all_finite;
+    use crate::math::all_finite;
 
     #[test]
     fn all_finite_finds_any_nan_or_infinity_in_every_position() {

@@ -171,7 +171,7 @@ impl ConstraintSolver for PgsSolver {
         check_problem(problem)?;
         let goal = self.residual_goal.map_or(self.tolerance, |g| g.max(self.tolerance));
         let n = problem.rows();
-        if lambda.len() != n || !self.warm_start || !lambda.iter().all(|x| x.is_finite()) {
+        if lambda.len() != n || !self.warm_start || !crate::math::all_finite(lambda.as_slice()) {
             *lambda = DVector::zeros(n);
         }
         let a = &problem.delassus;
@@ -620,9 +620,7 @@ fn pyramid_block_step(
 fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, s: &mut DVector<f64>) {
     let s = s.as_mut_slice();
     for (col, w) in problem.sparsity.row_spans(i) {
-        for (d, w) in s[col..col + w.len()].iter_mut().zip(w) {
-            *d += delta * w;
-        }
+        crate::constraints::axpy(&mut s[col..col + w.len()], delta, w);
     }
 }
 

@@ -1219,6 +1219,9 @@ fn check_finite(
     v: &DVector<f64>,
     after: bool,
 ) -> Result<(), StepError> {
+    if crate::math::all_finite(q.as_slice()) && crate::math::all_finite(v.as_slice()) {
+        return Ok(());
+    }
     let joint_of_q = |k: usize| (1..model.nbodies()).rev().find(|&i| model.idx_q(i) <= k).unwrap_or(0);
     let joint_of_v = |k: usize| if k < model.nv() { model.dof_joint(k) } else { 0 };
     if let Some(k) = q.iter().position(|x| !x.is_finite()) {
