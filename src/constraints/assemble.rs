@@ -1138,8 +1138,21 @@ pub(crate) fn axpy(x: &mut [f64], a: f64, y: &[f64]) {
         p[2] += a * q[2];
         p[3] += a * q[3];
     }
-    for (p, q) in cx.into_remainder().iter_mut().zip(cy.remainder()) {
-        *p += a * q;
+    // At most three entries, written out: as a loop, the compiler makes them one masked
+    // vector load and store, and a masked load of entries stored just before (the factor's
+    // rows, updated by one dof after another) waits for the store to retire.
+    match (cx.into_remainder(), cy.remainder()) {
+        ([p0], [q0]) => *p0 += a * q0,
+        ([p0, p1], [q0, q1]) => {
+            *p0 += a * q0;
+            *p1 += a * q1;
+        }
+        ([p0, p1, p2], [q0, q1, q2]) => {
+            *p0 += a * q0;
+            *p1 += a * q1;
+            *p2 += a * q2;
+        }
+        _ => {}
     }
 }
 
