@@ -533,6 +533,98 @@ impl ProblemBuilder {
         dot(w, w)
     }
 
+    /// How many rows from `i` (1 to 4) are rows on the dofs of one joint that
+    /// [`Self::push_joint_rows_w_lanes`] scales as lanes of one pass: consecutive joint rows
+    /// whose columns all lie in one run of at most three chained dofs (a joint's friction rows,
+    /// one per dof; a ball joint's swing and twist rows, each on its three dofs).
+    fn joint_lanes<'f>(
+        &self,
+        i: usize,
+        factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+    ) -> usize {
+        let RowForm::Joint { first, len, .. } = self.forms[i] else { return 1 };
+        let (mut lo, mut hi) = (first, first + len - 1);
+        let mut count = 1;
+        while count < 4 && i + count < self.forms.len() {
+            let RowForm::Joint { first, len, .. } = self.forms[i + count] else { break };
+            let (l, h) = (lo.min(first), hi.max(first + len - 1));
+            if h - l > 2 {
+                break;
+            }
+            (lo, hi) = (l, h);
+            count += 1;
+        }
+        if count == 1 {
+            return 1;
+        }
+        let block = self.block_of_col[hi] as usize;
+        if self.block_of_col[lo] as usize != block {
+            return 1;
+        }
+        let Some((factor, first_dof)) = factor_of(block) else { return 1 };
+        let dof = |c: usize| first_dof + c - self.blocks[block].0;
+        if (lo + 1..=hi).any(|c| factor.dof_parent[dof(c)] != dof(c - 1)) {
+            return 1;
+        }
+        count
+    }
+
+    /// W of `count` rows from `i` on one joint's chained dofs ([`Self::joint_lanes`]), as lanes of
+    /// one back substitution along the chain of their last dof ([`TreeFactor::scale_chain_lanes`]),
+    /// each row's runs then taken up to its own last dof: the same entries, bit for bit, as
+    /// [`Self::push_joint_row_w`] row by row, for the cost of one row.
+    fn push_joint_rows_w_lanes<'f>(
+        &self,
+        i: usize,
+        count: usize,
+        factor_of: &impl Fn(usize) -> Option<(TreeFactor<'f>, usize)>,
+        lanes: &mut Vec<[f64; 4]>,
+        sp: &mut RowSparsity,
+    ) {
+        let row = |j: usize| match self.forms[j] {
+            RowForm::Joint { first, coefficients, len } => (first, coefficients, len),
+            _ => unreachable!("joint_lanes groups joint rows only"),
+        };
+        let last = (i..i + count).map(|j| row(j).0 + row(j).2 - 1).max().unwrap_or(0);
+        let block = self.block_of_col[last] as usize;
+        let Some((factor, first_dof)) = factor_of(block) else {
+            unreachable!("joint_lanes checked the factor")
+        };
+        let block_col = self.blocks[block].0;
+        let tail = first_dof + last - block_col;
+        let path = factor.chain(tail);
+        // The chain's position of column c, one of the joint's dofs (the chain's last entries).
+        let position = |c: usize| path.len() - (last - c);
+        lanes.clear();
+        lanes.resize(path.len() + 1, [0.0; 4]);
+        for (lane, j) in (i..i + count).enumerate() {
+            let (first, coefficients, len) = row(j);
+            for (k, x) in coefficients[..len].iter().enumerate() {
+                lanes[position(first + k)][lane] = *x;
+            }
+        }
+        factor.scale_chain_lanes(tail, lanes);
+        let col = |p: usize| block_col + path.get(p).copied().unwrap_or(tail) - first_dof;
+        for (lane, j) in (i..i + count).enumerate() {
+            let (first, _, len) = row(j);
+            let end = position(first + len - 1) + 1;
+            let (start, runs) = (sp.w_values.len(), sp.runs.len());
+            let mut p = lanes[..end].iter().position(|x| x[lane] != 0.0).unwrap_or(end);
+            while p < end {
+                let from = p;
+                p += 1;
+                while p < end && col(p) == col(p - 1) + 1 {
+                    p += 1;
+                }
+                sp.runs.push((col(from), sp.w_values.len(), p - from));
+                sp.w_values.extend(lanes[from..p].iter().map(|x| x[lane]));
+            }
+            close_entry(sp, block, runs);
+            let w = &sp.w_values[start..];
+            finish_row(sp, dot(w, w));
+        }
+    }
+
     /// Registers a contact block whose normal row is `normal` (the two friction rows follow it),
     /// for rows pushed with [`ProblemBuilder::push_row`].
     pub fn push_contact_block(&mut self, block: ContactBlock) -> usize {
@@ -653,11 +745,20 @@ impl ProblemBuilder {
             while next_contact < self.contacts.len() && self.contacts[next_contact].normal < i {
                 next_contact += 1;
             }
-            if let RowForm::Joint { first, coefficients, len } = self.forms[i] {
-                jv[i] = (0..len).map(|k| coefficients[k] * v_free[first + k]).sum();
-                let norm2 = self.push_joint_row_w(first, &coefficients[..len], &factor_of, &mut scaled, sp);
-                finish_row(sp, norm2);
-                i += 1;
+            if matches!(self.forms[i], RowForm::Joint { .. }) {
+                let count = self.joint_lanes(i, &factor_of);
+                for (k, j) in (i..i + count).enumerate() {
+                    let RowForm::Joint { first, coefficients, len } = self.forms[j] else { unreachable!() };
+                    jv[j] = (0..len).map(|c| coefficients[c] * v_free[first + c]).sum();
+                    if count == 1 {
+                        let norm2 =
+                            self.push_joint_row_w(first, &coefficients[..len], &factor_of, &mut scaled, sp);
+                        finish_row(sp, norm2);
+                    } else if k == 0 {
+                        self.push_joint_rows_w_lanes(i, count, &factor_of, &mut lanes, sp);
+                    }
+                }
+                i += count;
                 continue;
             }
             if matches!(self.forms[i], RowForm::Rates(_)) {
