@@ -75,7 +75,7 @@ pub(crate) fn factor_packed_mass_matrix(model: &Model, data: &mut Data) -> Resul
             let a = row_k[p] * inverse_pivot;
             if a != 0.0 {
                 let i = paths[path_start[k] + p];
-                crate::constraints::axpy(&mut before[row_start(i)..row_start(i) + p + 1], -a, &row_k[..=p]);
+                crate::math::axpy(&mut before[row_start(i)..row_start(i) + p + 1], -a, &row_k[..=p]);
             }
             row_k[p] = a;
         }

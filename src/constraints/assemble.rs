@@ -4,7 +4,7 @@
 
 use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin, RowSparsity};
 use crate::data::Data;
-use crate::math::Vec3;
+use crate::math::{axpy, dot, Vec3};
 use crate::model::{Model, NO_DOF};
 use crate::solvers::SolverError;
 use nalgebra::{DMatrix, DVector};
@@ -747,15 +747,16 @@ impl ProblemBuilder {
             }
             if matches!(self.forms[i], RowForm::Joint { .. }) {
                 let count = self.joint_lanes(i, &factor_of);
-                for (k, j) in (i..i + count).enumerate() {
-                    let RowForm::Joint { first, coefficients, len } = self.forms[j] else { unreachable!() };
-                    jv[j] = (0..len).map(|c| coefficients[c] * v_free[first + c]).sum();
+                if count > 1 {
+                    self.push_joint_rows_w_lanes(i, count, &factor_of, &mut lanes, sp);
+                }
+                for (form, jv) in self.forms[i..i + count].iter().zip(&mut jv[i..i + count]) {
+                    let RowForm::Joint { first, coefficients, len } = *form else { unreachable!() };
+                    *jv = (0..len).map(|c| coefficients[c] * v_free[first + c]).sum();
                     if count == 1 {
                         let norm2 =
                             self.push_joint_row_w(first, &coefficients[..len], &factor_of, &mut scaled, sp);
                         finish_row(sp, norm2);
-                    } else if k == 0 {
-                        self.push_joint_rows_w_lanes(i, count, &factor_of, &mut lanes, sp);
                     }
                 }
                 i += count;
@@ -1224,74 +1225,9 @@ pub(crate) fn runs_dot(sp: &RowSparsity, a: &[(usize, usize, usize)], b: &[(usiz
     total
 }
 
-/// `x ← x + a y`, four entries at a time: the loops that call it are short (a dof's ancestors,
-/// a row's span, ~10 entries), shorter than the compiler's own vector loop (the vector width
-/// times four), which leaves them to its epilogue. Each entry gets the same operations as a
-/// plain loop, so results are bit for bit the same.
-#[inline]
-pub(crate) fn axpy(x: &mut [f64], a: f64, y: &[f64]) {
-    debug_assert_eq!(x.len(), y.len());
-    let mut cx = x.chunks_exact_mut(4);
-    let mut cy = y.chunks_exact(4);
-    for (p, q) in (&mut cx).zip(&mut cy) {
-        p[0] += a * q[0];
-        p[1] += a * q[1];
-        p[2] += a * q[2];
-        p[3] += a * q[3];
-    }
-    // At most three entries, written out: as a loop, the compiler makes them one masked
-    // vector load and store, and a masked load of entries stored just before (the factor's
-    // rows, updated by one dof after another) waits for the store to retire.
-    match (cx.into_remainder(), cy.remainder()) {
-        ([p0], [q0]) => *p0 += a * q0,
-        ([p0, p1], [q0, q1]) => {
-            *p0 += a * q0;
-            *p1 += a * q1;
-        }
-        ([p0, p1, p2], [q0, q1, q2]) => {
-            *p0 += a * q0;
-            *p1 += a * q1;
-            *p2 += a * q2;
-        }
-        _ => {}
-    }
-}
-
-/// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
-/// bound by the latency of one addition per entry).
-pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (mut s0, mut s1, mut s2, mut s3) = (0.0, 0.0, 0.0, 0.0);
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let (ra, rb) = (ca.remainder(), cb.remainder());
-    for (p, q) in ca.zip(cb) {
-        s0 += p[0] * q[0];
-        s1 += p[1] * q[1];
-        s2 += p[2] * q[2];
-        s3 += p[3] * q[3];
-    }
-    for (p, q) in ra.iter().zip(rb) {
-        s0 += p * q;
-    }
-    (s0 + s1) + (s2 + s3)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Every length, every remainder: the same bits as the plain loop.
-    #[test]
-    fn axpy_equals_the_plain_loop_bit_for_bit() {
-        for len in 0..13 {
-            let y: Vec<f64> = (0..len).map(|k| (k as f64 * 0.37).sin() * 1e3).collect();
-            let x0: Vec<f64> = (0..len).map(|k| (k as f64 * 1.9).cos() / 7.0).collect();
-            let a = -0.123_456_789;
-            let mut x = x0.clone();
-            axpy(&mut x, a, &y);
-            let plain: Vec<f64> = x0.iter().zip(&y).map(|(x, y)| x + a * y).collect();
-            assert_eq!(x, plain, "length {len}");
-        }
-    }
     use crate::algorithms::jacobian::last_dof_of;
     use crate::algorithms::{crba, factor_mass_matrix};
     use crate::io::urdf::{load_file, UrdfOptions};

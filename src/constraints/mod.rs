@@ -19,7 +19,6 @@ mod joints;
 mod loops;
 
 pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
-pub(crate) use assemble::{axpy, dot};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,
@@ -346,8 +345,10 @@ impl ConstraintProblem {
                 }
             }
             for i in 0..w.len() {
-                w[i] +=
-                    sp.row_spans(i).map(|(col, wi)| assemble::dot(wi, &s[col..col + wi.len()])).sum::<f64>();
+                w[i] += sp
+                    .row_spans(i)
+                    .map(|(col, wi)| crate::math::dot(wi, &s[col..col + wi.len()]))
+                    .sum::<f64>();
             }
         } else {
             w.gemv(1.0, &self.delassus, lambda, 1.0);

@@ -223,7 +223,7 @@ impl ConstraintSolver for PgsSolver {
                     .filter(|&i| lambda[i] != 0.0)
                     .map(|i| {
                         let column = a.column(i);
-                        let upper = crate::constraints::dot(&column.as_slice()[..i], &lambda.as_slice()[..i]);
+                        let upper = crate::math::dot(&column.as_slice()[..i], &lambda.as_slice()[..i]);
                         lambda[i] * (2.0 * upper + column[i] * lambda[i])
                     })
                     .sum()
@@ -245,7 +245,7 @@ impl ConstraintSolver for PgsSolver {
                 let dv = dv.as_slice();
                 let mut jdv = 0.0;
                 for (col, w) in problem.sparsity.row_spans(i) {
-                    jdv += crate::constraints::dot(w, &dv[col..col + w.len()]);
+                    jdv += crate::math::dot(w, &dv[col..col + w.len()]);
                 }
                 jdv + problem.regularization[i] * lambda[i] + problem.bias[i]
             } else {
@@ -620,7 +620,7 @@ fn pyramid_block_step(
 fn axpy_blocks(problem: &ConstraintProblem, i: usize, delta: f64, s: &mut DVector<f64>) {
     let s = s.as_mut_slice();
     for (col, w) in problem.sparsity.row_spans(i) {
-        crate::constraints::axpy(&mut s[col..col + w.len()], delta, w);
+        crate::math::axpy(&mut s[col..col + w.len()], delta, w);
     }
 }
 

@@ -719,7 +719,7 @@ fn reduced_solve(ws: &mut SubspaceWorkspace) -> bool {
     for _ in 1..REFINEMENTS {
         ws.correction.clear();
         for u in 0..s {
-            let kx: f64 = crate::constraints::dot(&ws.k[u * s..(u + 1) * s], &ws.x);
+            let kx: f64 = crate::math::dot(&ws.k[u * s..(u + 1) * s], &ws.x);
             ws.correction.push(ws.rhs[u] - kx);
         }
         solve(&ws.lu, &ws.pivots, &mut ws.correction);
@@ -1184,10 +1184,10 @@ fn cholesky_factor(a: &mut [f64], s: usize) -> bool {
         let row_i = &mut rest[..s];
         for j in 0..i {
             let row_j = &done[j * s..j * s + j + 1];
-            let sum = crate::constraints::dot(&row_i[..j], &row_j[..j]);
+            let sum = crate::math::dot(&row_i[..j], &row_j[..j]);
             row_i[j] = (row_i[j] - sum) / row_j[j];
         }
-        let pivot = row_i[i] - crate::constraints::dot(&row_i[..i], &row_i[..i]);
+        let pivot = row_i[i] - crate::math::dot(&row_i[..i], &row_i[..i]);
         if pivot.is_nan() || pivot <= 0.0 {
             return false;
         }
@@ -1200,7 +1200,7 @@ fn cholesky_factor(a: &mut [f64], s: usize) -> bool {
 /// columns of Lᵀ (rows of L, contiguous).
 fn cholesky_solve(l: &[f64], s: usize, x: &mut [f64]) {
     for r in 0..s {
-        let sum = crate::constraints::dot(&l[r * s..r * s + r], &x[..r]);
+        let sum = crate::math::dot(&l[r * s..r * s + r], &x[..r]);
         x[r] = (x[r] - sum) / l[r * s + r];
     }
     for r in (0..s).rev() {
@@ -1218,11 +1218,11 @@ fn lu_solve(lu: &[f64], pivots: &[usize], s: usize, x: &mut [f64]) {
         x.swap(col, p);
     }
     for r in 0..s {
-        let sum: f64 = crate::constraints::dot(&lu[r * s..r * s + r], &x[..r]);
+        let sum: f64 = crate::math::dot(&lu[r * s..r * s + r], &x[..r]);
         x[r] -= sum;
     }
     for r in (0..s).rev() {
-        let sum: f64 = crate::constraints::dot(&lu[r * s + r + 1..(r + 1) * s], &x[r + 1..]);
+        let sum: f64 = crate::math::dot(&lu[r * s + r + 1..(r + 1) * s], &x[r + 1..]);
         x[r] = (x[r] - sum) / lu[r * s + r];
     }
 }
@@ -1272,7 +1272,7 @@ mod tests {
         let mut a = vec![0.0; s * s];
         for i in 0..s {
             for j in 0..s {
-                a[i * s + j] = crate::constraints::dot(&b[i * 12..(i + 1) * 12], &b[j * 12..(j + 1) * 12]);
+                a[i * s + j] = crate::math::dot(&b[i * 12..(i + 1) * 12], &b[j * 12..(j + 1) * 12]);
             }
             a[i * s + i] += 1e-3;
         }
@@ -1284,7 +1284,7 @@ mod tests {
         cholesky_solve(&l, s, &mut x);
         lu_solve(&lu, &pivots, s, &mut y);
         for i in 0..s {
-            let residual = crate::constraints::dot(&a[i * s..(i + 1) * s], &x) - rhs[i];
+            let residual = crate::math::dot(&a[i * s..(i + 1) * s], &x) - rhs[i];
             assert!(residual.abs() < 1e-9, "row {i}: residual {residual}");
             assert!((x[i] - y[i]).abs() < 1e-8 * y[i].abs().max(1.0), "{} against {}", x[i], y[i]);
         }
