@@ -1807,3 +1807,78 @@ fn features_identify_contacts_across_steps() {
         assert_eq!(second, first, "{name}: features after a small motion");
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Reuse of a resting pair's manifolds
+// ---------------------------------------------------------------------------------------------
+
+/// A pair that moved less than `CollisionOptions::reuse` allows keeps its contact points and
+/// refreshes their distances: the same distances as a fresh detection to 1e-12 m (the motion's
+/// second order is far below that), and beyond the bounds the manifolds are computed again.
+/// Body on body too, with the pair moved as a whole (the relative pose decides).
+#[test]
+fn a_pair_that_hardly_moved_refreshes_its_contacts() {
+    let cases = [
+        (
+            "box on ground",
+            Shape::Box { size: v3(0.3, 0.2, 0.1) },
+            Transform::new(rot(v3(0.2, 0.1, 1.0), 0.4), v3(0.1, 0.0, 0.0499)),
+            Shape::HalfSpace { normal: Vec3::z() },
+            None,
+        ),
+        (
+            "capsule on a box body",
+            Shape::Capsule { radius: 0.05, length: 0.3 },
+            // Tilted by 3°: its lower end on the box (lying parallel, parry's extra closest
+            // point comes and goes with rounding, 2 or 3 points).
+            Transform::new(rot(Vec3::x(), deg(87.0)), v3(0.0, 0.02, 0.1499 + 0.15 * deg(3.0).sin())),
+            Shape::Box { size: v3(1.0, 1.0, 0.2) },
+            Some(Transform::identity()),
+        ),
+    ];
+    for (name, shape, x, support, support_pose) in cases {
+        let build = |x: Transform, reuse: bool| {
+            let options = CollisionOptions { reuse: reuse.then(Default::default), ..Default::default() };
+            let mut s = Scene::with_options(options);
+            let mb = s.body("probe", shape.clone(), x);
+            match support_pose {
+                Some(pose) => {
+                    s.body("support", support.clone(), pose);
+                }
+                None => {
+                    s.fixed("support", support.clone(), Transform::identity());
+                }
+            }
+            (s, mb)
+        };
+        let (mut s, mb) = build(x, true);
+        let first = s.detect();
+        assert!(!first.is_empty(), "{name}: no contacts");
+        assert_eq!(s.world.stats().refreshed_pairs, 0, "{name}: the first detection computes");
+        // Within the default bounds (1e-8 m, 1e-7 rad).
+        let nudged =
+            Transform::new(rot(v3(1.0, -0.5, 0.3), 5e-8) * x.rotation, x.translation + v3(4e-9, -3e-9, 5e-9));
+        s.place(mb, nudged);
+        let refreshed: Vec<Expected> = s.detect().iter().map(as_expected).collect();
+        assert_eq!(s.world.stats().refreshed_pairs, 1, "{name}: a nudged pair is refreshed");
+        let (mut fresh_scene, _) = build(nudged, false);
+        let fresh: Vec<Expected> = fresh_scene.detect().iter().map(as_expected).collect();
+        // The distance is exact to second order in the motion. The points are A's material
+        // points, where a fresh detection takes the closest ones: on a curved surface those
+        // move by the turn times the radius (5e-8 rad × 0.05 m); the normal turned with A (by
+        // at most the 1e-7 rad bound), and B's point lies on it.
+        assert_eq!(refreshed.len(), fresh.len(), "{name}: contact count");
+        for f in &fresh {
+            let r =
+                refreshed.iter().min_by(|a, b| (a.0 - f.0).norm().total_cmp(&(b.0 - f.0).norm())).unwrap();
+            close(r.0, f.0, 1e-8, &format!("{name}: point_a"));
+            close(r.1, f.1, 1e-8, &format!("{name}: point_b"));
+            close(r.2, f.2, 1e-7, &format!("{name}: normal"));
+            close_f(r.3, f.3, 1e-12, &format!("{name}: distance"));
+        }
+        // Beyond them: computed again.
+        s.place(mb, Transform::new(x.rotation, x.translation + v3(0.0, 0.0, -2e-8)));
+        s.detect();
+        assert_eq!(s.world.stats().refreshed_pairs, 0, "{name}: a pair moved by 2e-8 m is computed again");
+    }
+}

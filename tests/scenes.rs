@@ -362,15 +362,20 @@ fn the_resting_box_stack_is_still_and_its_solves_take_few_sweeps() {
     for _ in 0..1500 {
         s.world.step().unwrap();
     }
-    let (mut sweeps, mut fastest_seen) = (0, 0.0f64);
+    let (mut sweeps, mut fastest_seen, mut pairs, mut refreshed) = (0, 0.0f64, 0, 0);
     for _ in 0..200 {
         let stats = s.world.step().unwrap();
         assert!(stats.fallbacks.is_empty(), "step {}: fell back to {:?}", stats.step, stats.fallbacks);
         sweeps += stats.iterations;
         fastest_seen = fastest_seen.max(fastest(&s.world));
+        let collision = s.world.collision().stats();
+        (pairs, refreshed) = (pairs + collision.broad_pairs, refreshed + collision.refreshed_pairs);
     }
     assert!(fastest_seen < 1e-8, "a box moves at {fastest_seen:e} m/s or rad/s at rest");
     assert!(sweeps <= 400, "{sweeps} sweeps over 200 resting steps");
+    // A still pair keeps its manifolds (CollisionOptions::reuse): parry's box–box clipping runs
+    // only where a pair moved by 1e-8 m or 1e-7 rad since.
+    assert!(refreshed * 10 >= pairs * 9, "{refreshed} of {pairs} pairs refreshed at rest");
 }
 
 #[test]
@@ -535,4 +540,31 @@ fn the_integrator_key_sets_the_world_integrator() {
     // Without the key: the velocity-level step.
     let scene = scene::load_str("[[body]]\nshape = \"sphere\"\nradius = 0.1\n", models_dir()).unwrap();
     assert_eq!(scene.world.options().integrator, IntegratorKind::SemiImplicitEuler);
+}
+
+#[test]
+fn the_contact_reuse_key_sets_the_collision_option() {
+    use gelenk::collision::ManifoldReuse;
+    let reuse_of = |value: &str| {
+        let text =
+            format!("[world]\ncontact_reuse = {value}\n\n[[body]]\nshape = \"sphere\"\nradius = 0.1\n");
+        scene::load_str(&text, models_dir()).unwrap().world.options().collision.reuse
+    };
+    assert_eq!(reuse_of("false"), None);
+    assert_eq!(reuse_of("true"), Some(ManifoldReuse::default()));
+    assert_eq!(
+        reuse_of("{ translation = 1e-6, rotation = 2e-5 }"),
+        Some(ManifoldReuse { translation: 1e-6, rotation: 2e-5 })
+    );
+    assert_eq!(
+        reuse_of("{ rotation = 2e-5 }"),
+        Some(ManifoldReuse { rotation: 2e-5, ..ManifoldReuse::default() })
+    );
+    // Without the key: on, with the default bounds.
+    let scene = scene::load_str("[[body]]\nshape = \"sphere\"\nradius = 0.1\n", models_dir()).unwrap();
+    assert_eq!(scene.world.options().collision.reuse, Some(ManifoldReuse::default()));
+    for bad in ["0.5", "{ translation = -1e-6 }", "{ angle = 1e-5 }"] {
+        let message = load_error(&format!("[world]\ncontact_reuse = {bad}\n"));
+        assert!(message.contains("line 2") && message.contains("world.contact_reuse"), "{bad}: {message}");
+    }
 }

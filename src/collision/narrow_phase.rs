@@ -30,6 +30,9 @@ pub(crate) struct PairState {
     pub manifolds: Vec<Manifold>,
     pub workspace: Option<ContactManifoldsWorkspace>,
     pub last_step: u64,
+    /// Pose of B in A's frame when the manifolds were last computed (None: never, or the last
+    /// call failed), for [`refresh_distances`].
+    pub computed_at: Option<Pose>,
     /// Per manifold, whether this call's height-field loop reached its triangle
     /// ([`convex_against_height_field`]).
     visited: Vec<bool>,
@@ -45,6 +48,41 @@ impl PairCache {
     /// Drops the state of pairs that were not near each other in step `step`.
     pub fn forget_older_than(&mut self, step: u64) {
         self.pairs.retain(|_, s| s.last_step >= step);
+    }
+}
+
+/// Whether the pose of B in A's frame, `pos_ab`, is within `translation` (m) and `rotation`
+/// (rad) of `before`.
+pub(crate) fn pose_within(before: &Pose, pos_ab: &Pose, translation: Real, rotation: Real) -> bool {
+    if (pos_ab.translation - before.translation).length_squared() > translation * translation {
+        return false;
+    }
+    // The vector part of q₀⁻¹q has length sin(θ/2) for the angle θ between the two rotations
+    // (whichever sign either quaternion has); near zero it is resolved to rounding, where
+    // 1 − |q₀·q| = θ²/8 is lost below θ ≈ 4e-8 rad.
+    let (q0, q) = (before.rotation, pos_ab.rotation);
+    let (v0, v) = (q0.xyz(), q.xyz());
+    let half_sine = v * q0.w - v0 * q.w - v0.cross(v);
+    let bound = (0.5 * rotation.min(std::f64::consts::PI)).sin();
+    half_sine.length_squared() <= bound * bound
+}
+
+/// Recomputes each point's signed distance for B at `pos_ab`, keeping A's point where it is on
+/// A and the normal where it is in A's frame (Bullet's refresh of a persistent manifold): the
+/// distance is `(p₂ − p₁)·n₁` with B's point p₂ carried along with B, and p₂ is then put at
+/// `p₁ + dist · n₁`, so that the two points stay apart along the normal only. Exact to first
+/// order in the motion since the manifolds were computed, off by what the motion changes of
+/// which points are closest (second order: δ²/2r for a sphere of radius r moved sideways by δ).
+pub(crate) fn refresh_distances(manifolds: &mut [Manifold], pos_ab: &Pose) {
+    for m in manifolds {
+        let sub1 = m.subshape_pos1().copied().unwrap_or(Pose::IDENTITY);
+        let sub2 = pos_ab * m.subshape_pos2().copied().unwrap_or(Pose::IDENTITY);
+        let n1 = sub1.rotation * m.local_n1;
+        for p in &mut m.points {
+            let p1 = sub1 * p.local_p1;
+            p.dist = (sub2 * p.local_p2 - p1).dot(n1);
+            p.local_p2 = sub2.inverse_transform_point(p1 + n1 * p.dist);
+        }
     }
 }
 
@@ -827,5 +865,129 @@ mod tests {
         assert_eq!(points.len(), 2, "{points:?}");
         let gap = (points[0].local_p1 - points[1].local_p1).length();
         assert!(gap > 0.19, "the two ends are {gap} m apart");
+    }
+}
+
+#[cfg(test)]
+mod refresh_tests {
+    use super::*;
+    use parry3d_f64::math::{Rotation, Vector};
+    use parry3d_f64::shape::{Capsule, Cuboid};
+
+    /// A pair of shapes (kinds and shapes of A and B) at a pose of B in A's frame.
+    type Case<'a> = (&'a str, ShapeKind, &'a dyn ParryShape, ShapeKind, &'a dyn ParryShape, Pose);
+
+    fn closest(state: &PairState) -> f64 {
+        state.manifolds.iter().flat_map(|m| m.points.iter().map(|p| p.dist)).fold(f64::INFINITY, f64::min)
+    }
+
+    /// Refreshing a manifold at the pose it was computed at gives parry's distances back; after
+    /// a small motion the refreshed closest distance is parry's new one to second order in the
+    /// motion, and the two points of each contact stay apart along the normal only.
+    #[test]
+    fn refreshed_distances_match_a_fresh_manifold() {
+        let capsule = Capsule::new_z(0.15, 0.05);
+        let cube = Cuboid::new(Vector::new(0.1, 0.06, 0.04));
+        let ground = HalfSpace::new(Vector::Z);
+        let tilt = Rotation::from_scaled_axis(Vector::new(0.3, -0.2, 0.1));
+        let at = |x: f64, y: f64, z: f64, r: Rotation| Pose::from_parts(Vector::new(x, y, z), r);
+        let cases: [Case; 4] = [
+            (
+                "capsule/ground",
+                ShapeKind::Capsule,
+                &capsule,
+                ShapeKind::HalfSpace,
+                &ground,
+                at(0.0, 0.0, -0.045, Rotation::IDENTITY),
+            ),
+            (
+                "box/ground",
+                ShapeKind::Box,
+                &cube,
+                ShapeKind::HalfSpace,
+                &ground,
+                at(0.01, 0.0, -0.039, Rotation::from_scaled_axis(Vector::new(0.002, 0.001, 0.0))),
+            ),
+            (
+                "capsule/capsule",
+                ShapeKind::Capsule,
+                &capsule,
+                ShapeKind::Capsule,
+                &capsule,
+                at(0.098, 0.01, 0.02, tilt),
+            ),
+            (
+                "box/capsule",
+                ShapeKind::Box,
+                &cube,
+                ShapeKind::Capsule,
+                &capsule,
+                at(0.0, 0.0, 0.089, Rotation::from_scaled_axis(Vector::new(1.5, 0.0, 0.0))),
+            ),
+        ];
+        for (name, kind_a, a, kind_b, b, pose) in cases {
+            let mut state = PairState::default();
+            dispatch(kind_a, a, kind_b, b, &pose, 0.02, &mut state).unwrap();
+            let fresh: Vec<f64> =
+                state.manifolds.iter().flat_map(|m| m.points.iter().map(|p| p.dist)).collect();
+            assert!(!fresh.is_empty(), "{name}: no points");
+            refresh_distances(&mut state.manifolds, &pose);
+            for (p, d) in state.manifolds.iter().flat_map(|m| m.points.iter()).zip(&fresh) {
+                assert!((p.dist - d).abs() < 1e-14, "{name}: refreshed {} against {d}", p.dist);
+            }
+            // 1e-5 m and 3e-5 rad: far beyond the default reuse bounds, to see the second order.
+            let motion = at(3e-6, -2e-6, 4e-6, Rotation::from_scaled_axis(Vector::new(2e-5, 1e-5, -3e-5)));
+            let moved = pose * motion;
+            refresh_distances(&mut state.manifolds, &moved);
+            let mut again = PairState::default();
+            dispatch(kind_a, a, kind_b, b, &moved, 0.02, &mut again).unwrap();
+            let (refreshed, recomputed) = (closest(&state), closest(&again));
+            assert!(
+                (refreshed - recomputed).abs() < 1e-9,
+                "{name}: refreshed {refreshed} against {recomputed}"
+            );
+            assert!(
+                (refreshed - closest_of(&fresh)).abs() > 1e-7,
+                "{name}: the motion must change the distance"
+            );
+            for m in &state.manifolds {
+                let sub1 = m.subshape_pos1().copied().unwrap_or(Pose::IDENTITY);
+                let sub2 = moved * m.subshape_pos2().copied().unwrap_or(Pose::IDENTITY);
+                let n1 = sub1.rotation * m.local_n1;
+                for p in &m.points {
+                    let apart = sub2 * p.local_p2 - sub1 * p.local_p1;
+                    assert!((apart - n1 * p.dist).length() < 1e-15, "{name}: points apart by {apart:?}");
+                }
+            }
+        }
+    }
+
+    fn closest_of(distances: &[f64]) -> f64 {
+        distances.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn pose_within_bounds_translation_and_rotation() {
+        let pose = Pose::from_parts(
+            Vector::new(0.3, -0.1, 0.2),
+            Rotation::from_scaled_axis(Vector::new(0.4, 0.1, -0.2)),
+        );
+        let shifted = |dx: f64, angle: f64| {
+            pose * Pose::from_parts(
+                Vector::new(dx, 0.0, 0.0),
+                Rotation::from_scaled_axis(Vector::new(0.0, 0.0, angle)),
+            )
+        };
+        assert!(pose_within(&pose, &pose, 1e-8, 1e-7));
+        assert!(pose_within(&pose, &shifted(0.9e-8, 0.0), 1e-8, 1e-7));
+        assert!(!pose_within(&pose, &shifted(1.1e-8, 0.0), 1e-8, 1e-7));
+        assert!(pose_within(&pose, &shifted(0.0, 0.9e-4), 1e-8, 1e-4));
+        assert!(!pose_within(&pose, &shifted(0.0, 1.1e-4), 1e-8, 1e-4));
+        // Resolved at the default bound too, where the cosine of half the angle is 1 − 1.25e-15.
+        assert!(pose_within(&pose, &shifted(0.0, 0.9e-7), 1e-8, 1e-7));
+        assert!(!pose_within(&pose, &shifted(0.0, 1.1e-7), 1e-8, 1e-7));
+        // q and −q are the same rotation.
+        let flipped = Pose::from_parts(pose.translation, -pose.rotation);
+        assert!(pose_within(&pose, &flipped, 1e-8, 1e-7));
     }
 }

@@ -84,6 +84,7 @@
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
+//! | | `contact_reuse` | keep a pair's contact points while it moves less than this, refreshing only their distances: `true`, `false` or `{ translation = m, rotation = rad }` ([`crate::collision::ManifoldReuse`]; true: 1e-8 m, 1e-7 rad) |
 //! | | `sleep` | let resting bodies sleep (true) |
 //! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
 //! | `[contact]` | `mu`, `mu2`, `restitution`, `bounce_velocity`, `erp`, `cfm`, `surface_layer`, `max_correcting_velocity` | parameters of material 0 ([`ContactParameters`]) |
@@ -136,7 +137,7 @@
 //! | | `multibodies` | names of the multibodies recorded (all) |
 //! | | `velocities`, `energy` | also record v, and the total energy (false) |
 
-use crate::collision::{MeshOptions, MissingMeshPolicy};
+use crate::collision::{ManifoldReuse, MeshOptions, MissingMeshPolicy};
 use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters};
 use crate::error::ModelError;
 use crate::io::urdf::{self, UrdfError, UrdfOptions};
@@ -959,6 +960,35 @@ impl<'de> Deserialize<'de> for SolverList {
     }
 }
 
+/// `contact_reuse`: `true` (the default tolerances), `false`, or `{ translation, rotation }`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ReuseSetting(Option<ManifoldReuse>);
+
+impl<'de> Deserialize<'de> for ReuseSetting {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct Tolerances {
+            translation: Option<Positive>,
+            rotation: Option<Positive>,
+        }
+        match toml::Value::deserialize(d)? {
+            toml::Value::Boolean(on) => Ok(Self(on.then(ManifoldReuse::default))),
+            table @ toml::Value::Table(_) => {
+                let t: Tolerances = table.try_into().map_err(D::Error::custom)?;
+                let defaults = ManifoldReuse::default();
+                Ok(Self(Some(ManifoldReuse {
+                    translation: t.translation.map_or(defaults.translation, |x| x.0),
+                    rotation: t.rotation.map_or(defaults.rotation, |x| x.0),
+                })))
+            }
+            other => Err(D::Error::custom(format!(
+                "expected true, false or {{ translation = m, rotation = rad }}, got {other}"
+            ))),
+        }
+    }
+}
+
 /// `friction`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct FrictionName(FrictionModel);
@@ -1055,6 +1085,7 @@ struct WorldSection {
     speculative_within: Option<NonNegative>,
     speculative_factor: Option<PositiveOrInfinite>,
     collide_joined_bodies: Option<bool>,
+    contact_reuse: Option<ReuseSetting>,
     sleep: Option<bool>,
     integrator: Option<IntegratorName>,
 }
@@ -1379,6 +1410,7 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
     options.speculation.speed_factor = w.speculative_factor.map_or(options.speculation.speed_factor, |x| x.0);
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
+    options.collision.reuse = w.contact_reuse.map_or(options.collision.reuse, |r| r.0);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);
     if let Some(name) = &w.integrator {
         options.integrator = crate::world::parse_integrator(&name.0).unwrap_or(options.integrator);
