@@ -127,6 +127,14 @@ pub enum DynamicsError {
         /// Joint owning that index.
         joint: String,
     },
+    /// A ball or free joint's quaternion is (nearly) zero: no rotation to normalize it to.
+    #[error("joint `{joint}`: its quaternion has norm {norm:e}, too small to be normalized into a rotation")]
+    DegenerateQuaternion {
+        /// Joint name.
+        joint: String,
+        /// Euclidean norm of the four coordinates.
+        norm: f64,
+    },
     /// The mass matrix is singular: the subtree below this joint has no mass or inertia to move.
     #[error("joint `{joint}`: the subtree it moves has no mass or inertia along its motion, so the mass matrix is singular")]
     SingularMassMatrix {

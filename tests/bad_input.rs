@@ -331,6 +331,33 @@ fn urdf_err(text: &str) -> String {
     }
 }
 
+/// Inverted or NaN bounds are an error; equal bounds (urdf-rs reads a missing one as 0) mean
+/// no limit, and a continuous joint ignores them.
+#[test]
+fn urdf_inverted_or_nan_limits_are_errors() {
+    for (kind, lower, upper) in
+        [("revolute", "1", "-1"), ("prismatic", "0.5", "0.2"), ("revolute", "nan", "1")]
+    {
+        let j = format!(
+            r#"<joint name="j" type="{kind}"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="{lower}" upper="{upper}" effort="1" velocity="1"/></joint>"#
+        );
+        let msg = urdf_err(&robot(&format!("{}{}{j}", link("a"), link("b"))));
+        assert!(
+            msg.contains("joint `j`") && msg.contains("lower must not exceed upper"),
+            "{kind} {lower} {upper}: {msg}"
+        );
+    }
+    for (kind, lower, upper) in [("revolute", "0", "0"), ("continuous", "1", "-1")] {
+        let j = format!(
+            r#"<joint name="j" type="{kind}"><parent link="a"/><child link="b"/><axis xyz="0 0 1"/><limit lower="{lower}" upper="{upper}" effort="1" velocity="1"/></joint>"#
+        );
+        let model =
+            load_str(&robot(&format!("{}{}{j}", link("a"), link("b"))), &UrdfOptions::default()).unwrap();
+        assert_eq!(model.lower_position_limit()[0], f64::NEG_INFINITY, "{kind} {lower} {upper}");
+        assert_eq!(model.upper_position_limit()[0], f64::INFINITY, "{kind} {lower} {upper}");
+    }
+}
+
 #[test]
 fn urdf_valid_baseline_loads() {
     let text = robot(&format!("{}{}{}", link("a"), link("b"), joint("j", "revolute", "a", "b")));
@@ -582,6 +609,33 @@ fn non_finite_inputs_name_the_joint() {
     let mut q_bad = q.clone();
     q_bad[5] = f64::NAN;
     non_finite(potential_energy(&model, &mut data, &q_bad).unwrap_err(), "q", 5, "slide_joint");
+}
+
+/// A zero quaternion is no rotation: refused by name, where it used to come out as a singular
+/// mass matrix ("no mass or inertia"). A quaternion of any other length is normalized.
+#[test]
+fn a_zero_quaternion_is_refused_and_others_are_normalized() {
+    let model = small_model();
+    let mut data = Data::new(&model);
+    let zero = DVector::zeros(5);
+    // q: [base | ball quaternion ×4 | slide]
+    let mut q = model.neutral_configuration();
+    q.as_mut_slice()[1..5].copy_from_slice(&[0.0; 4]);
+    for e in [
+        aba(&model, &mut data, &q, &zero, &zero).unwrap_err(),
+        crba(&model, &mut data, &q).unwrap_err(),
+        forward_kinematics(&model, &mut data, &q).unwrap_err(),
+    ] {
+        assert!(
+            matches!(&e, DynamicsError::DegenerateQuaternion { joint, norm } if joint == "ball_joint" && *norm == 0.0),
+            "{e:?}"
+        );
+    }
+    q.as_mut_slice()[1..5].copy_from_slice(&[0.2, -0.4, 0.4, 0.8]);
+    let unit = aba(&model, &mut data, &q, &zero, &zero).unwrap().clone();
+    q.as_mut_slice()[1..5].iter_mut().for_each(|x| *x *= 3.0);
+    let scaled = aba(&model, &mut data, &q, &zero, &zero).unwrap().clone();
+    assert!((unit - scaled).amax() < 1e-12);
 }
 
 #[test]

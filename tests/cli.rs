@@ -94,6 +94,15 @@ fn bad_input_is_one_line_and_nonzero_exit() {
     std::fs::write(&states, r#"{"states":[{"q":[0,0]}]}"#).unwrap();
     let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states.to_str().unwrap()]);
     assert_one_line_error(&out, "\"q\" has 2 entries");
+    std::fs::write(&states, r#"{"states":[{"q":[0,0,0,0,0,0,0,0.1,0.2,0.3,0.4,0.5,0.6]}]}"#).unwrap();
+    let out = gelenk(&[
+        "dynamics",
+        &model_path("ur5_robot.urdf"),
+        "--floating",
+        "--states",
+        states.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&out, "quaternion has norm 0");
     std::fs::write(&states, "not json").unwrap();
     let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states.to_str().unwrap()]);
     assert_one_line_error(&out, "not valid JSON");
@@ -254,4 +263,10 @@ fn bench_world_applies_vehicle_commands_when_asked() {
     };
     let (standing, driven) = (max_rows(false), max_rows(true));
     assert!(driven > standing, "{driven} rows driven, {standing} standing");
+    // Zero episodes or steps would time nothing: refused, not reported as a median of nothing.
+    for option in ["--rounds", "--steps"] {
+        let out = gelenk(&["bench", "world", &scene, option, "0"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains("at least 1"), "{option} 0: {err}");
+    }
 }

@@ -423,9 +423,24 @@ fn bad_problem_files_give_typed_errors_naming_the_file() {
     check(
         &edit(&|v| v["friction"] = serde_json::json!({"model": "pyramid", "facets": 2})),
         false,
-        "3 facets",
+        "3 to 64 facets",
+    );
+    // Facets beyond the bound: the LCP would need one variable per facet and contact.
+    check(
+        &edit(&|v| v["friction"] = serde_json::json!({"model": "pyramid", "facets": 1_000_000})),
+        false,
+        "3 to 64 facets",
     );
     check(&edit(&|v| v["regularization"][0] = (-1.0).into()), false, "negative");
+    // A that is not symmetric, or has a negative diagonal entry, is no Delassus matrix (the first
+    // corpus problem has a dense A of at least 2 rows).
+    assert!(good.contains("\"delassus\":[[") && !good.contains("\"rows\":1,"));
+    check(
+        &edit(&|v| v["delassus"][0][1] = (v["delassus"][0][1].as_f64().unwrap() + 1.0).into()),
+        false,
+        "not symmetric",
+    );
+    check(&edit(&|v| v["delassus"][1][1] = (-1.0).into()), false, "positive semidefinite");
     check(&edit(&|v| v["jacobian"] = serde_json::Value::Null), false, "together");
     check(&edit(&|v| v["bias"][0] = serde_json::Value::Null), true, "not a valid problem file");
     std::fs::write(&path, good.replacen("\"bias\":[", "\"bias\":[1e999,", 1)).unwrap();

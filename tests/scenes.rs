@@ -119,6 +119,22 @@ fn bad_values_are_errors_with_their_line() {
     assert!(message.contains("line 4") && message.contains("body[0].count"), "{message}");
     let message = load_error("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\nposition = [1, 2]\n");
     assert!(message.contains("line 4") && message.contains("body[0].position"), "{message}");
+    // Counts that would exhaust memory (or wrap) while building, a PGS of no sweeps, a pyramid
+    // of a million facets.
+    let message =
+        load_error("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = [4294967296, 4294967296, 1]\n");
+    assert!(message.contains("line 4") && message.contains("at most 100000 copies"), "{message}");
+    let message =
+        load_error("[[ground]]\nkind = \"heightfield\"\nsize = [1, 1]\nsamples = [4294967296, 4294967296]\n");
+    assert!(message.contains("more than 4194304 heights"), "{message}");
+    let message = load_error("[world]\nsolver = \"pgs0\"\n");
+    assert!(message.contains("line 2") && message.contains("pgs0"), "{message}");
+    let message = load_error("[world]\nfriction = \"pyramid1000000\"\n");
+    assert!(message.contains("line 2") && message.contains("N <= 64"), "{message}");
+    // A zero quaternion for a ball joint.
+    let message =
+        load_error("[[urdf]]\npath = \"ragdoll.urdf\"\nfloating = true\njoints = { neck = [0, 0, 0, 0] }\n");
+    assert!(message.contains("line 4") && message.contains("quaternion"), "{message}");
     // Not TOML at all.
     let message = load_error("[world\ndt = 1\n");
     assert!(message.contains("line 1"), "{message}");

@@ -6,7 +6,8 @@ use nalgebra::DVector;
 
 /// Checks that `q` has nq finite entries.
 pub(crate) fn check_q(model: &Model, q: &DVector<f64>) -> Result<(), DynamicsError> {
-    check(model, q, "q", model.nq(), |m, k| m.joint_of_q(k))
+    check(model, q, "q", model.nq(), |m, k| m.joint_of_q(k))?;
+    model.check_quaternions(q.as_slice())
 }
 
 /// Checks that a velocity-sized vector (`v`, `a`, `tau`) has nv finite entries.

@@ -138,7 +138,7 @@ enum ReportCommand {
         /// Only these solvers (lemke, clarabel, pgsN; default: lemke, clarabel, pgs10, pgs50).
         #[arg(long, value_delimiter = ',')]
         solvers: Vec<String>,
-        /// Only these time steps in s (default: 1/60, 1/240, 1/1000).
+        /// Only these time steps in s, each in [1e-6, 0.05] (default: 1/60, 1/240, 1/1000).
         #[arg(long, value_delimiter = ',')]
         dt: Vec<f64>,
         /// World integrators (semi-implicit-euler, rk4, dopri45, ...; default:
@@ -181,8 +181,8 @@ enum BenchCommand {
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
-        /// Timed rounds; the median is reported.
-        #[arg(long, default_value_t = 51)]
+        /// Timed rounds (at least 1); the median is reported.
+        #[arg(long, default_value_t = 51, value_parser = at_least_one)]
         rounds: usize,
     },
     /// Whole-step time of a scene (models/*.toml, or an MJCF .xml such as
@@ -193,8 +193,8 @@ enum BenchCommand {
         /// Solver chain instead of the scene's, e.g. `pgs50`, `pgs100,clarabel`.
         #[arg(long)]
         solver: Option<String>,
-        /// Steps timed (one episode from the initial state, after `--settle`).
-        #[arg(long, default_value_t = 2500)]
+        /// Steps timed (at least 1; one episode from the initial state, after `--settle`).
+        #[arg(long, default_value_t = 2500, value_parser = at_least_one)]
         steps: usize,
         /// Steps run untimed first (e.g. to let a stack settle).
         #[arg(long, default_value_t = 0)]
@@ -206,8 +206,8 @@ enum BenchCommand {
         /// default: the world alone is stepped, a buggy stands where it starts).
         #[arg(long)]
         controls: bool,
-        /// Episodes timed; the reported figures are medians over episodes.
-        #[arg(long, default_value_t = 5)]
+        /// Episodes timed (at least 1); the reported figures are medians over episodes.
+        #[arg(long, default_value_t = 5, value_parser = at_least_one)]
         rounds: usize,
         /// Print JSON instead of text.
         #[arg(long)]
@@ -540,13 +540,21 @@ fn dynamics(path: &Path, floating: bool, states_path: &Path) -> Result<(), Strin
     Ok(())
 }
 
+/// A count of at least one, for options where zero would time or report nothing.
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!("expected an integer of at least 1, got `{text}`")),
+    }
+}
+
 /// Median nanoseconds per call of `f` over `rounds` rounds of one pass through a pool of states.
 fn median_ns(rounds: usize, pool: usize, mut f: impl FnMut(usize)) -> f64 {
     let warm = Instant::now();
     while warm.elapsed().as_millis() < 200 {
         (0..pool).for_each(&mut f);
     }
-    let mut per_call: Vec<f64> = (0..rounds.max(1))
+    let mut per_call: Vec<f64> = (0..rounds)
         .map(|_| {
             let start = Instant::now();
             (0..pool).for_each(&mut f);
@@ -683,7 +691,7 @@ fn bench_world(
     let (mut medians, mut means, mut phases) = (Vec::new(), Vec::new(), Vec::new());
     let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
         (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
-    for _ in 0..rounds.max(1) {
+    for _ in 0..rounds {
         let mut target = BenchTarget::load(path)?;
         let world = target.world();
         if let Some(s) = &solvers {
@@ -752,12 +760,12 @@ fn bench_world(
 }
 
 fn parse_friction(text: &str) -> Result<gelenk::constraints::FrictionModel, String> {
-    use gelenk::constraints::FrictionModel;
+    use gelenk::constraints::{FrictionModel, MAX_PYRAMID_FACETS};
     match text.split_once(':') {
         None if text == "cone" => Ok(FrictionModel::Cone),
         Some(("pyramid", k)) => match k.parse::<usize>() {
-            Ok(facets) if facets >= 3 => Ok(FrictionModel::Pyramid { facets }),
-            _ => Err(format!("--friction {text}: a pyramid needs an integer number of facets ≥ 3")),
+            Ok(facets) if (3..=MAX_PYRAMID_FACETS).contains(&facets) => Ok(FrictionModel::Pyramid { facets }),
+            _ => Err(format!("--friction {text}: a pyramid needs 3 to {MAX_PYRAMID_FACETS} facets")),
         },
         _ => Err(format!("--friction {text}: expected `cone` or `pyramid:K`")),
     }
@@ -982,8 +990,10 @@ fn report_stability(
             .collect::<Result<_, _>>()?
     };
     let dts: Vec<f64> = if dts.is_empty() { stability::TIME_STEPS.to_vec() } else { dts.to_vec() };
-    if let Some(bad) = dts.iter().find(|h| !(h.is_finite() && **h > 0.0)) {
-        return Err(format!("time step {bad} is not a positive number"));
+    // The shortest phase of a case lasts 0.05 s, the longest case 10 s: a step outside
+    // [1e-6, 0.05] s would time nothing or run for ever.
+    if let Some(bad) = dts.iter().find(|h| !(1e-6..=0.05).contains(*h)) {
+        return Err(format!("time step {bad} s is outside [1e-6, 0.05] s"));
     }
     let integrator_kinds: Vec<gelenk::integrators::IntegratorKind> = if integrators.is_empty() {
         std::iter::once(gelenk::integrators::IntegratorKind::SemiImplicitEuler)

@@ -53,13 +53,17 @@ pub enum RowLaw {
     },
 }
 
+/// Most facets a friction pyramid may have ([`FrictionModel::Pyramid`]): each contact's LCP has
+/// one variable per facet, and beyond a few dozen the cone itself is both exact and cheaper.
+pub const MAX_PYRAMID_FACETS: usize = 64;
+
 /// How friction bounds the tangential impulse of a contact.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrictionModel {
     /// The exact Coulomb cone `(λ₁/μ)² + (λ₂/μ₂)² ≤ λ_n²`.
     Cone,
     /// The inscribed pyramid: the convex hull of `λ_n (μ cos θ_j, μ₂ sin θ_j)`, `θ_j = 2πj/k`,
-    /// `k = facets ≥ 3`. Lemke always solves this form.
+    /// `3 ≤ k = facets ≤` [`MAX_PYRAMID_FACETS`]. Lemke always solves this form.
     Pyramid {
         /// Number of facets (directions) k.
         facets: usize,

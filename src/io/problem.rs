@@ -229,9 +229,31 @@ pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
     if let Some(i) = problem.regularization.iter().position(|&r| r < 0.0) {
         return Err(format!("row {i}: regularization R = {} is negative", problem.regularization[i]));
     }
+    // A = J M⁻¹ Jᵀ is symmetric positive semidefinite; a solver given anything else answers
+    // another question (PGS and Lemke read one triangle only where they read it at all). The
+    // full test of definiteness is a factorization; its diagonal and symmetry are cheap.
+    let scale = (0..n).map(|i| delassus[(i, i)].abs()).fold(0.0, f64::max);
+    if let Some(i) = (0..n).find(|&i| delassus[(i, i)] < -1e-12 * scale) {
+        return Err(format!(
+            "A[{i}][{i}] = {} is negative: A must be positive semidefinite",
+            delassus[(i, i)]
+        ));
+    }
+    for i in 0..n {
+        if let Some(j) = (i + 1..n).find(|&j| (delassus[(i, j)] - delassus[(j, i)]).abs() > 1e-9 * scale) {
+            return Err(format!(
+                "A is not symmetric: A[{i}][{j}] = {} but A[{j}][{i}] = {}",
+                delassus[(i, j)],
+                delassus[(j, i)]
+            ));
+        }
+    }
     if let FrictionModel::Pyramid { facets } = problem.friction {
-        if facets < 3 {
-            return Err(format!("a friction pyramid needs at least 3 facets, got {facets}"));
+        if !(3..=crate::constraints::MAX_PYRAMID_FACETS).contains(&facets) {
+            return Err(format!(
+                "a friction pyramid needs 3 to {} facets, got {facets}",
+                crate::constraints::MAX_PYRAMID_FACETS
+            ));
         }
     }
     for (k, c) in problem.contacts.iter().enumerate() {

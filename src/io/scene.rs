@@ -406,7 +406,7 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
         .map(str::trim)
         .map(|name| {
             SolverKind::parse(name).ok_or_else(|| {
-                format!("unknown solver `{name}` (known: lemke, clarabel, pgs, pgsN with N sweeps)")
+                format!("unknown solver `{name}` (known: lemke, clarabel, pgs, pgsN with N >= 1 sweeps)")
             })
         })
         .collect::<Result<Vec<_>, _>>()?;
@@ -416,15 +416,21 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
     Ok(chain)
 }
 
-/// Parses a friction model: `cone`, `pyramid` (4 facets) or `pyramidN` (N ≥ 3 facets).
+/// Parses a friction model: `cone`, `pyramid` (4 facets) or `pyramidN` (3 ≤ N ≤
+/// [`crate::constraints::MAX_PYRAMID_FACETS`] facets).
 pub fn parse_friction(text: &str) -> Result<FrictionModel, String> {
-    let bad = || format!("unknown friction model `{text}` (known: cone, pyramid, pyramidN with N >= 3)");
+    let bad = || {
+        format!(
+            "unknown friction model `{text}` (known: cone, pyramid, pyramidN with 3 <= N <= {})",
+            crate::constraints::MAX_PYRAMID_FACETS
+        )
+    };
     match text {
         "cone" => Ok(FrictionModel::Cone),
         "pyramid" => Ok(FrictionModel::Pyramid { facets: 4 }),
         other => {
             let facets: usize = other.strip_prefix("pyramid").and_then(|n| n.parse().ok()).ok_or_else(bad)?;
-            if facets < 3 {
+            if !(3..=crate::constraints::MAX_PYRAMID_FACETS).contains(&facets) {
                 return Err(bad());
             }
             Ok(FrictionModel::Pyramid { facets })
@@ -869,19 +875,37 @@ enum Count {
     Grid([usize; 3]),
 }
 
+/// Most copies one `count` makes: a scene file describes a scene to step, and a count beyond
+/// this (a typo, a wrapped product) would only exhaust memory while building it.
+const MAX_COPIES: usize = 100_000;
+
+/// Most samples a generated heightfield has (`samples = [nx, ny]`), 32 MiB of heights.
+const MAX_HEIGHTFIELD_SAMPLES: usize = 1 << 22;
+
 impl<'de> Deserialize<'de> for Count {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let expected = "expected a positive integer or a list [nx, ny, nz] of positive integers";
         let positive = |v: &toml::Value| v.as_integer().filter(|n| *n >= 1).map(|n| n as usize);
-        match toml::Value::deserialize(d)? {
+        let count = match toml::Value::deserialize(d)? {
             v @ toml::Value::Integer(_) => {
-                positive(&v).map(Count::Row).ok_or_else(|| D::Error::custom(expected))
+                positive(&v).map(Count::Row).ok_or_else(|| D::Error::custom(expected))?
             }
             toml::Value::Array(a) if a.len() == 3 => {
                 let dims: Option<Vec<usize>> = a.iter().map(positive).collect();
-                dims.map(|d| Count::Grid([d[0], d[1], d[2]])).ok_or_else(|| D::Error::custom(expected))
+                dims.map(|d| Count::Grid([d[0], d[1], d[2]])).ok_or_else(|| D::Error::custom(expected))?
             }
-            _ => Err(D::Error::custom(expected)),
+            _ => return Err(D::Error::custom(expected)),
+        };
+        let total = match count {
+            Count::Row(n) => Some(n),
+            Count::Grid([x, y, z]) => x.checked_mul(y).and_then(|xy| xy.checked_mul(z)),
+        };
+        match total {
+            Some(n) if n <= MAX_COPIES => Ok(count),
+            _ => Err(D::Error::custom(match count {
+                Count::Row(n) => format!("at most {MAX_COPIES} copies, got {n}"),
+                Count::Grid([x, y, z]) => format!("at most {MAX_COPIES} copies, got [{x}, {y}, {z}]"),
+            })),
         }
     }
 }
@@ -1638,6 +1662,11 @@ impl Builder<'_> {
                     if nx < 2 || ny < 2 {
                         return Err(err("`samples` must be at least [2, 2]".to_string()));
                     }
+                    if nx.checked_mul(ny).is_none_or(|n| n > MAX_HEIGHTFIELD_SAMPLES) {
+                        return Err(err(format!(
+                            "`samples` = [{nx}, {ny}] is more than {MAX_HEIGHTFIELD_SAMPLES} heights"
+                        )));
+                    }
                     let amplitude = g.bump_height.map_or(0.0, |x| x.0);
                     let k = 2.0 * std::f64::consts::PI / g.bump_wavelength.map_or(1.0, |x| x.0);
                     DMatrix::from_fn(nx, ny, |i, j| {
@@ -1734,6 +1763,12 @@ impl Builder<'_> {
                     ));
                 }
                 q[iq + k] = xk;
+            }
+            if model.joint(j).quaternion_norm(x).is_some_and(|n| n < crate::model::MIN_QUATERNION_NORM) {
+                return Err(self.src.invalid(
+                    value.span(),
+                    format!("joint `{name}`: a quaternion of norm (nearly) zero is no rotation"),
+                ));
             }
             model.joint(j).normalize(&mut q.as_mut_slice()[iq..iq + nq]);
         }

@@ -225,8 +225,20 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
         let joint_err = |what: String| UrdfError::Joint { file: file.into(), joint: j.name.clone(), what };
         let lim = &j.limit;
         let given = |x: f64| if x > 0.0 && x.is_finite() { x } else { f64::INFINITY };
-        let range =
-            if lim.lower < lim.upper { (lim.lower, lim.upper) } else { (f64::NEG_INFINITY, f64::INFINITY) };
+        // Equal bounds (urdf-rs reads a missing one as 0) mean no limit; inverted or NaN bounds
+        // are an error where the joint has a range (revolute and prismatic).
+        let range = || {
+            if lim.lower.is_nan() || lim.upper.is_nan() || lim.lower > lim.upper {
+                Err(joint_err(format!(
+                    "<limit lower=\"{}\" upper=\"{}\">: lower must not exceed upper (equal bounds: no limit)",
+                    lim.lower, lim.upper
+                )))
+            } else if lim.lower < lim.upper {
+                Ok((lim.lower, lim.upper))
+            } else {
+                Ok((f64::NEG_INFINITY, f64::INFINITY))
+            }
+        };
         let (velocity, effort) = (given(lim.velocity), given(lim.effort));
         let dynamics = j
             .dynamics
@@ -237,7 +249,8 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
         use urdf_rs::JointType as T;
         match &j.joint_type {
             T::Revolute | T::Continuous => {
-                let range = if j.joint_type == T::Continuous { (f64::NEG_INFINITY, f64::INFINITY) } else { range };
+                let range =
+                    if j.joint_type == T::Continuous { (f64::NEG_INFINITY, f64::INFINITY) } else { range()? };
                 match extensions.get(&j.name) {
                     None => {
                         body.joint = Joint::Hinge { axis };
@@ -287,7 +300,7 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
             }
             T::Prismatic => {
                 body.joint = Joint::Slider { axis };
-                body.limits = limits(&[range], velocity, effort, 1);
+                body.limits = limits(&[range()?], velocity, effort, 1);
             }
             T::Fixed => {}
             T::Floating => body.joint = Joint::Free,

@@ -14,12 +14,16 @@ pub use builder::{BodySpec, JointDynamics, JointLimits, ModelBuilder, RigidInert
 pub use geometry::{GeometryRole, GeometrySpec, Shape};
 pub use joint::{swing_twist, BallLimits, Joint, Suspension, SwingTwist};
 
+use crate::error::DynamicsError;
 use crate::math::{SpatialInertia, Transform, Vec3};
 use nalgebra::DVector;
 use rand::Rng;
 
 /// Marks "no parent degree of freedom" in [`Model::dof_parent`].
 pub const NO_DOF: usize = usize::MAX;
+
+/// Smallest norm of a ball or free joint's quaternion that [`Model::check_quaternions`] accepts.
+pub const MIN_QUATERNION_NORM: f64 = 1e-9;
 
 /// What a [`Frame`] was declared as.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -323,6 +327,22 @@ impl Model {
             let j = &self.joints[i];
             j.normalize(&mut q.as_mut_slice()[self.idx_q[i]..self.idx_q[i] + j.nq()]);
         }
+    }
+    /// Checks that every quaternion in `q` (nq entries) can be normalized: a norm of at least
+    /// [`MIN_QUATERNION_NORM`]. The algorithms normalize the others as they read them.
+    pub fn check_quaternions(&self, q: &[f64]) -> Result<(), DynamicsError> {
+        for i in 1..self.nbodies() {
+            let j = &self.joints[i];
+            let norm = j.quaternion_norm(&q[self.idx_q[i]..self.idx_q[i] + j.nq()]);
+            // Written so that a NaN norm passes here and is reported as not finite.
+            if norm.is_some_and(|n| n < MIN_QUATERNION_NORM) {
+                return Err(DynamicsError::DegenerateQuaternion {
+                    joint: self.joint_name(i).to_string(),
+                    norm: norm.unwrap_or(0.0),
+                });
+            }
+        }
+        Ok(())
     }
     /// The joint owning configuration index `k`.
     pub fn joint_of_q(&self, k: usize) -> usize {

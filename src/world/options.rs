@@ -36,7 +36,7 @@ impl SolverKind {
         }
     }
 
-    /// Parses `lemke`, `clarabel`, `pgs` or `pgsN` (N sweeps).
+    /// Parses `lemke`, `clarabel`, `pgs` or `pgsN` (N ≥ 1 sweeps).
     pub fn parse(name: &str) -> Option<Self> {
         match name {
             "lemke" => Some(SolverKind::Lemke { facets: 8 }),
@@ -45,6 +45,7 @@ impl SolverKind {
             other => other
                 .strip_prefix("pgs")
                 .and_then(|n| n.parse().ok())
+                .filter(|&iterations| iterations >= 1)
                 .map(|iterations| SolverKind::Pgs { iterations, omega: 1.0 }),
         }
     }

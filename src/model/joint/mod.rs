@@ -270,6 +270,16 @@ impl Joint {
         }
     }
 
+    /// Norm of the quaternion part of `q` (ball, free); `None` for other kinds.
+    pub fn quaternion_norm(&self, q: &[f64]) -> Option<f64> {
+        let quat = match self {
+            Joint::Ball => &q[0..4],
+            Joint::Free => &q[3..7],
+            _ => return None,
+        };
+        Some(quat.iter().map(|x| x * x).sum::<f64>().sqrt())
+    }
+
     /// Renormalizes the quaternion part of `q` (ball, free); no-op for other kinds.
     pub fn normalize(&self, q: &mut [f64]) {
         let quat = match self {
