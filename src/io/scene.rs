@@ -80,7 +80,7 @@
 //! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
-//! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"` (`"cone"`) |
+//! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
@@ -98,7 +98,7 @@
 //! | | `angle_deg`, `direction` | slope: a plane through the frame's origin rising at `angle_deg` (required, in (−90, 90)) along the horizontal `direction` (`[1, 0, 0]`); heightfield: a tilt added to the heights (0) |
 //! | | `size` | heightfield: `[size_x, size_y]`, m (required), centred on the frame's origin |
 //! | | `heights` | heightfield: rows of heights, m; `heights[i][j]` is at `x_i`, `y_j` (at least 2×2) |
-//! | | `samples`, `bump_height`, `bump_wavelength` | generated heightfield (when `heights` is absent): `[nx, ny]` samples (`[33, 33]`), bumps `h·sin(2πx/λ)·sin(2πy/λ)` (0 m, 1 m) |
+//! | | `samples`, `bump_height`, `bump_wavelength` | generated heightfield (when `heights` is absent): `[nx, ny]` samples, at most 2²² in all (`[33, 33]`), bumps `h·sin(2πx/λ)·sin(2πy/λ)` (0 m, 1 m) |
 //! | `[[urdf]]` | `path` | URDF file (required), relative to the scene file |
 //! | | `name` | multibody name (the robot's name) |
 //! | | `floating` | free joint at the root (false: the root link is fixed to the world) |
@@ -121,7 +121,7 @@
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |
 //! | | `position`, `rpy` or `quaternion` | pose of the (first) body (identity) |
 //! | | `velocity`, `angular_velocity` | initial velocity, world axes (0) |
-//! | | `count`, `spacing` | `n` copies at `position + k·spacing`, or a grid `[nx, ny, nz]` at `position + (i·sx, j·sy, k·sz)` |
+//! | | `count`, `spacing` | `n` copies at `position + k·spacing`, or a grid `[nx, ny, nz]` at `position + (i·sx, j·sy, k·sz)`; at most 100 000 copies |
 //! | | `jitter`, `seed` | random offset of each copy, uniform in ±jitter m per axis (0), and its seed (0) |
 //! | | `material` | material index or name (0) |
 //! | | `fixed` | static geometry instead of a free body (false) |
