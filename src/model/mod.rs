@@ -331,14 +331,19 @@ impl Model {
     /// Checks that every quaternion in `q` (nq entries) can be normalized: a norm of at least
     /// [`MIN_QUATERNION_NORM`]. The algorithms normalize the others as they read them.
     pub fn check_quaternions(&self, q: &[f64]) -> Result<(), DynamicsError> {
+        // Squared norms: no square root per joint on the step's path (kinematics checks q).
         for i in 1..self.nbodies() {
-            let j = &self.joints[i];
-            let norm = j.quaternion_norm(&q[self.idx_q[i]..self.idx_q[i] + j.nq()]);
-            // Written so that a NaN norm passes here and is reported as not finite.
-            if norm.is_some_and(|n| n < MIN_QUATERNION_NORM) {
+            let quat = match self.joints[i] {
+                Joint::Ball => &q[self.idx_q[i]..self.idx_q[i] + 4],
+                Joint::Free => &q[self.idx_q[i] + 3..self.idx_q[i] + 7],
+                _ => continue,
+            };
+            let squared: f64 = quat.iter().map(|x| x * x).sum();
+            // Written so that a NaN passes here and is reported as not finite.
+            if squared < MIN_QUATERNION_NORM * MIN_QUATERNION_NORM {
                 return Err(DynamicsError::DegenerateQuaternion {
                     joint: self.joint_name(i).to_string(),
-                    norm: norm.unwrap_or(0.0),
+                    norm: squared.sqrt(),
                 });
             }
         }
