@@ -131,6 +131,20 @@ fn bad_values_are_errors_with_their_line() {
     assert!(message.contains("line 2") && message.contains("pgs0"), "{message}");
     let message = load_error("[world]\nfriction = \"pyramid1000000\"\n");
     assert!(message.contains("line 2") && message.contains("N <= 64"), "{message}");
+    // Copies that would lie on each other (a row without spacing, a grid flat along an axis).
+    let message = load_error("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = 3\nspacing = [0, 0, 0]\n");
+    assert!(message.contains("would lie on each other"), "{message}");
+    let message =
+        load_error("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = [2, 2, 1]\nspacing = [2, 0, 0]\n");
+    assert!(message.contains("would lie on each other"), "{message}");
+    scene::load_str(
+        "[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = [2, 2, 1]\nspacing = [2, 2, 0]\n",
+        models_dir(),
+    )
+    .unwrap();
+    // A URDF given as a scene.
+    let message = load_error("<?xml version=\"1.0\"?>\n<robot name=\"r\"/>\n");
+    assert!(message.contains("not a scene"), "{message}");
     // A zero quaternion for a ball joint.
     let message =
         load_error("[[urdf]]\npath = \"ragdoll.urdf\"\nfloating = true\njoints = { neck = [0, 0, 0, 0] }\n");

@@ -875,6 +875,20 @@ enum Count {
     Grid([usize; 3]),
 }
 
+/// Whether copies placed by `count` (`dims`, a grid or a row) at `spacing` land on each other:
+/// a row of several with no spacing, or a grid of several along an axis without spacing along
+/// it, and no jitter to move them apart (identical bodies on each other have no contact normal).
+fn copies_coincide(dims: [usize; 3], grid: bool, spacing: &Vec3, jitter: f64) -> bool {
+    if jitter > 0.0 {
+        return false;
+    }
+    if grid {
+        (0..3).any(|a| dims[a] > 1 && spacing[a] == 0.0)
+    } else {
+        dims[0] > 1 && *spacing == Vec3::zeros()
+    }
+}
+
 /// Most copies one `count` makes: a scene file describes a scene to step, and a count beyond
 /// this (a typo, a wrapped product) would only exhaust memory while building it.
 const MAX_COPIES: usize = 100_000;
@@ -1401,6 +1415,11 @@ struct Overrides {
 }
 
 fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
+    if source.text.trim_start().starts_with('<') {
+        let message =
+            "this is XML (a URDF or MJCF file?), not a scene: scene files are TOML (see models/*.toml)";
+        return Err(source.invalid(0..0, message.to_string()));
+    }
     let doc: Document = toml::from_str(&source.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
         let message = e.message().trim_end().to_string();
@@ -1815,6 +1834,12 @@ impl Builder<'_> {
             (None, _) => return Err(err(format!("{total} copies need `spacing`"))),
         };
         let jitter = u.jitter.map_or(0.0, |x| x.0);
+        if copies_coincide(dims, grid, &spacing, jitter) {
+            return Err(err(format!(
+                "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
+                spacing.as_slice()
+            )));
+        }
         let mut rng = rand::rngs::StdRng::seed_from_u64(u.seed.unwrap_or(0));
         for k in 0..dims[2] {
             for j in 0..dims[1] {
@@ -2037,6 +2062,12 @@ impl Builder<'_> {
             (None, _) => return Err(err(format!("{total} copies need `spacing`"))),
         };
         let jitter = b.jitter.map_or(0.0, |x| x.0);
+        if copies_coincide(dims, grid, &spacing, jitter) {
+            return Err(err(format!(
+                "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
+                spacing.as_slice()
+            )));
+        }
         let mut rng = rand::rngs::StdRng::seed_from_u64(b.seed.unwrap_or(0));
         let base = b.name.clone().unwrap_or_else(|| format!("body{index}"));
 
