@@ -289,3 +289,52 @@ fn a_powered_ragdoll_holds_its_pose_with_bounded_torque() {
     assert!((servo.max_force[hip] - 6.0 * (10.62 + 3.2475 + 1.0275)).abs() < 1e-9);
     assert!((servo.max_force[wrist] - 6.0 * 0.4575).abs() < 1e-9);
 }
+
+/// A resting ragdoll keeps its factored mass matrix (`WorldOptions::mass_matrix_reuse`): over
+/// 200 resting steps it factors on at most a tenth of them, where with the reuse off every step
+/// factors. (That a step with the kept factor moves as one with a new factor, to 1e-12, is
+/// `world::tests::a_kept_mass_matrix_factor_gives_the_free_motion_of_a_new_one`.)
+#[test]
+fn a_resting_ragdoll_keeps_its_factored_mass_matrix() {
+    let load = || {
+        let mut s = scene::load_file(models().join("ragdoll_fall.toml")).unwrap();
+        s.world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..s.world.options().sleep });
+        s
+    };
+    let mut s = load();
+    assert_eq!(s.world.options().mass_matrix_reuse, Some(1e-8));
+    for _ in 0..1500 {
+        s.world.step().unwrap();
+    }
+    let before = s.world.multibody(0).factorizations();
+    for _ in 0..200 {
+        s.world.step().unwrap();
+    }
+    let factored = s.world.multibody(0).factorizations() - before;
+    assert!(factored <= 20, "{factored} factorizations in 200 resting steps");
+    // Moving the floating root keeps the factor (M does not depend on the root's pose in its
+    // body-frame velocities); turning a joint by 1e-6 rad does not.
+    let count = |s: &Scene| s.world.multibody(0).factorizations();
+    let (model, mut state) = (s.world.multibody(0).model().clone(), s.world.multibody(0).state.clone());
+    state.q[2] += 1e-3;
+    s.world.multibody_mut(0).state = state.clone();
+    let at = count(&s);
+    s.world.step().unwrap();
+    assert_eq!(count(&s), at, "a root moved by 1 mm must keep the factor");
+    let elbow = (1..model.nbodies()).find(|&j| model.joint_name(j) == "elbow_l").unwrap();
+    let mut state = s.world.multibody(0).state.clone();
+    state.q[model.idx_q(elbow)] += 1e-6;
+    s.world.multibody_mut(0).state = state;
+    s.world.step().unwrap();
+    assert_eq!(count(&s), at + 1, "an elbow turned by 1e-6 rad must factor again");
+    let before = count(&s);
+    s.world.set_mass_matrix_reuse(None);
+    for _ in 0..10 {
+        s.world.step().unwrap();
+    }
+    assert_eq!(
+        s.world.multibody(0).factorizations() - before - factored,
+        10,
+        "without the reuse every step factors"
+    );
+}

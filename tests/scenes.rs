@@ -598,3 +598,22 @@ fn the_contact_reuse_key_sets_the_collision_option() {
         assert!(message.contains("line 2") && message.contains("world.contact_reuse"), "{bad}: {message}");
     }
 }
+
+#[test]
+fn the_mass_matrix_reuse_key_sets_the_world_option() {
+    let reuse_of = |value: &str| {
+        let text =
+            format!("[world]\nmass_matrix_reuse = {value}\n\n[[body]]\nshape = \"sphere\"\nradius = 0.1\n");
+        scene::load_str(&text, models_dir()).unwrap().world.options().mass_matrix_reuse
+    };
+    assert_eq!(reuse_of("false"), None);
+    assert_eq!(reuse_of("true"), Some(1e-8));
+    assert_eq!(reuse_of("1e-6"), Some(1e-6));
+    for bad in ["0.0", "-1e-6", "\"on\""] {
+        let message = load_error(&format!("[world]\nmass_matrix_reuse = {bad}\n"));
+        assert!(
+            message.contains("line 2") && message.contains("world.mass_matrix_reuse"),
+            "{bad}: {message}"
+        );
+    }
+}

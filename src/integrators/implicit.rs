@@ -82,13 +82,14 @@ pub fn implicit_free_velocity(
     crba(model, data, q)?;
     pack_mass_matrix(model, data);
     nonlinear_effects(model, data, q, v)?;
-    implicit_velocity_from_dynamics(model, data, terms, q, v, h, rhs, v_out)
+    implicit_velocity_from_dynamics(model, data, terms, q, v, h, rhs, v_out, true)
 }
 
 /// The rest of [`implicit_free_velocity`] once `data` holds M's packed rows
 /// (`data.factor_packed`) and the bias forces (`data.nle`) at (q, v): the world's step computes
 /// those from its kinematics phase ([`crate::algorithms::crba_packed_at_kinematics`]) and calls
-/// this directly.
+/// this directly. With `factor` false, `data` already holds the factor of M + h·D (the world's
+/// reuse of a resting multibody's factor) and only the solve runs.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn implicit_velocity_from_dynamics(
     model: &Model,
@@ -99,21 +100,24 @@ pub(crate) fn implicit_velocity_from_dynamics(
     h: f64,
     rhs: &mut DVector<f64>,
     v_out: &mut DVector<f64>,
+    factor: bool,
 ) -> Result<(), DynamicsError> {
     if rhs.len() != model.nv() {
         return Err(DynamicsError::DimensionMismatch { what: "tau", expected: model.nv(), got: rhs.len() });
     }
     terms.subtract_passive_forces(model, q, v, h, rhs);
     *rhs -= &data.nle;
-    // M_kk is the last entry of dof k's packed row.
-    let diagonal = |k: usize| model.dof_path_start[k + 1] + k;
-    for (k, d) in model.damping().iter().enumerate() {
-        data.factor_packed[diagonal(k)] += h * d;
+    if factor {
+        // M_kk is the last entry of dof k's packed row.
+        let diagonal = |k: usize| model.dof_path_start[k + 1] + k;
+        for (k, d) in model.damping().iter().enumerate() {
+            data.factor_packed[diagonal(k)] += h * d;
+        }
+        for &(_, iv, k, c) in &terms.suspensions {
+            data.factor_packed[diagonal(iv)] += h * c + h * h * k;
+        }
+        factor_packed_mass_matrix(model, data)?;
     }
-    for &(_, iv, k, c) in &terms.suspensions {
-        data.factor_packed[diagonal(iv)] += h * c + h * h * k;
-    }
-    factor_packed_mass_matrix(model, data)?;
     solve_mass_matrix_slice(model, data, rhs.as_mut_slice());
     v_out.copy_from(v);
     v_out.axpy(h, rhs, 1.0);

@@ -84,6 +84,7 @@
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
+//! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`]; true: 1e-8) |
 //! | | `contact_reuse` | keep a pair's contact points while it moves less than this, refreshing only their distances: `true`, `false` or `{ translation = m, rotation = rad }` ([`crate::collision::ManifoldReuse`]; true: 1e-8 m, 1e-7 rad) |
 //! | | `sleep` | let resting bodies sleep (true) |
 //! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
@@ -1027,6 +1028,24 @@ impl<'de> Deserialize<'de> for ReuseSetting {
     }
 }
 
+/// `mass_matrix_reuse`: `true` (the default tolerance), `false`, or a tolerance (rad or m).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MassReuseSetting(Option<f64>);
+
+impl<'de> Deserialize<'de> for MassReuseSetting {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        match toml::Value::deserialize(d)? {
+            toml::Value::Boolean(on) => {
+                Ok(Self(on.then_some(WorldOptions::default().mass_matrix_reuse).flatten()))
+            }
+            toml::Value::Float(x) if x.is_finite() && x > 0.0 => Ok(Self(Some(x))),
+            other => {
+                Err(D::Error::custom(format!("expected true, false or a positive tolerance, got {other}")))
+            }
+        }
+    }
+}
+
 /// `friction`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct FrictionName(FrictionModel);
@@ -1124,6 +1143,7 @@ struct WorldSection {
     speculative_factor: Option<PositiveOrInfinite>,
     collide_joined_bodies: Option<bool>,
     contact_reuse: Option<ReuseSetting>,
+    mass_matrix_reuse: Option<MassReuseSetting>,
     sleep: Option<bool>,
     integrator: Option<IntegratorName>,
 }
@@ -1454,6 +1474,7 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
     options.collision.reuse = w.contact_reuse.map_or(options.collision.reuse, |r| r.0);
+    options.mass_matrix_reuse = w.mass_matrix_reuse.map_or(options.mass_matrix_reuse, |r| r.0);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);
     if let Some(name) = &w.integrator {
         options.integrator = crate::world::parse_integrator(&name.0).unwrap_or(options.integrator);

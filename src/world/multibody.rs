@@ -116,6 +116,12 @@ pub struct Multibody {
     /// the factorization. Other writers of the factor (smooth steps) write the same M, up to
     /// round-off.
     constant_mass_factored: bool,
+    /// The last factor of M (+ h·D) the free motion computed, with its q and h, for
+    /// [`super::WorldOptions::mass_matrix_reuse`]: copied back into `data` when reused, since
+    /// other users of `data` (impulses, smooth steps) may factor there in between.
+    kept_factor: KeptFactor,
+    /// Mass-matrix factorizations by the free motion so far (see [`Multibody::factorizations`]).
+    factorizations: u64,
     /// Per body, its spatial velocity in world axes about the world origin under `state.v`, under
     /// `v_free` ([`Multibody::update_world_velocities`]) and under the velocity after the
     /// step's solve ([`Multibody::update_solved_world_velocities`]).
@@ -182,6 +188,8 @@ impl Multibody {
             rhs: DVector::zeros(nv),
             factored: false,
             constant_mass_factored: false,
+            kept_factor: KeptFactor::default(),
+            factorizations: 0,
             world_velocities: WorldVelocities {
                 start: vec![Motion::zero(); nb],
                 free: vec![Motion::zero(); nb],
@@ -292,7 +300,12 @@ impl Multibody {
     /// `M̃ = M + h D + h² K` (damping D and suspension stiffness K treated implicitly, so that stiff
     /// springs and strong damping stay stable). With `need_factor` false and no implicit terms,
     /// ABA gives it in O(n) without M.
-    pub(crate) fn free_motion(&mut self, h: f64, need_factor: bool) -> Result<(), DynamicsError> {
+    pub(crate) fn free_motion(
+        &mut self,
+        h: f64,
+        need_factor: bool,
+        reuse: Option<f64>,
+    ) -> Result<(), DynamicsError> {
         if self.kinematic {
             self.v_free.copy_from(&self.state.v);
             self.factored = false;
@@ -328,7 +341,13 @@ impl Multibody {
         // The step's kinematics phase computed the joint transforms at this q: CRBA and RNEA
         // skip them.
         check_v(&self.model, &self.state.v, "v")?;
-        crba_packed_at_kinematics(&self.model, &mut self.data);
+        let reuse =
+            reuse.is_some_and(|tolerance| self.kept_factor.holds(&self.model, &self.state.q, h, tolerance));
+        if reuse {
+            self.kept_factor.restore(&mut self.data);
+        } else {
+            crba_packed_at_kinematics(&self.model, &mut self.data);
+        }
         nonlinear_effects_at_kinematics(&self.model, &mut self.data, &self.state.v);
         implicit_velocity_from_dynamics(
             &self.model,
@@ -339,10 +358,23 @@ impl Multibody {
             h,
             &mut self.rhs,
             &mut self.v_free,
+            !reuse,
         )?;
+        if !reuse {
+            self.factorizations += 1;
+            self.kept_factor.keep(&self.data, &self.state.q, h);
+        }
         self.factored = true;
         self.add_frame_rotation_terms(h);
         Ok(())
+    }
+
+    /// How many times the free motion has factored this multibody's mass matrix (CRBA and
+    /// the LTDL factorization); steps that reuse the last factor
+    /// ([`super::WorldOptions::mass_matrix_reuse`]) or need none (no rows, no damping: ABA) do not
+    /// count.
+    pub fn factorizations(&self) -> u64 {
+        self.factorizations
     }
 
     /// Free joints: turns the body-frame rate `v̇` of the origin's velocity into its classical
@@ -404,5 +436,48 @@ fn constant_mass_matrix(model: &Model, data: &mut Data) {
         let k = model.idx_v(i);
         let block = model.inertia(i).to_matrix();
         data.mass_matrix.view_mut((k, k), (6, 6)).copy_from(&block);
+    }
+}
+
+/// A factor of M (+ h·D) kept with the configuration and step it belongs to.
+#[derive(Clone, Debug, Default)]
+struct KeptFactor {
+    valid: bool,
+    h: f64,
+    q: DVector<f64>,
+    packed: Vec<f64>,
+    inv_sqrt_d: DVector<f64>,
+    row_coupled: Vec<bool>,
+}
+
+impl KeptFactor {
+    /// Whether the kept factor is for step `h` and every coordinate of `q` but a floating
+    /// root's is within `tolerance` of the kept q. In the body-frame velocities of a free root
+    /// (Pinocchio's), M does not depend on the root's pose.
+    fn holds(&self, model: &Model, q: &DVector<f64>, h: f64, tolerance: f64) -> bool {
+        if !self.valid || self.h != h {
+            return false;
+        }
+        let from = if model.nbodies() > 1 && model.parent(1) == 0 && matches!(model.joint(1), Joint::Free) {
+            model.idx_q(1) + 7
+        } else {
+            0
+        };
+        self.q.as_slice()[from..].iter().zip(&q.as_slice()[from..]).all(|(a, b)| (a - b).abs() <= tolerance)
+    }
+
+    fn keep(&mut self, data: &Data, q: &DVector<f64>, h: f64) {
+        self.valid = true;
+        self.h = h;
+        self.q.clone_from(q);
+        self.packed.clone_from(&data.factor_packed);
+        self.inv_sqrt_d.clone_from(&data.factor_inv_sqrt_d);
+        self.row_coupled.clone_from(&data.factor_row_coupled);
+    }
+
+    fn restore(&self, data: &mut Data) {
+        data.factor_packed.copy_from_slice(&self.packed);
+        data.factor_inv_sqrt_d.copy_from(&self.inv_sqrt_d);
+        data.factor_row_coupled.copy_from_slice(&self.row_coupled);
     }
 }

@@ -123,6 +123,14 @@ pub struct WorldOptions {
     /// [`super::smooth`]); the default, semi-implicit Euler, keeps the velocity-level step for
     /// every step.
     pub integrator: IntegratorKind,
+    /// Reuse of a multibody's factored mass matrix while its joints have hardly moved: when no
+    /// coordinate (rad or m; a floating root's pose excepted, which M does not depend on) is
+    /// further than this from where M was last factored, at the same step, the step solves with
+    /// that factor instead of running CRBA and the factorization again (None: every step
+    /// factors). M's entries then lag by a first-order change of at most this much in a
+    /// coordinate (relative 1e-8 of M's entries at the default); a resting ragdoll's joints move
+    /// by less than a nanoradian per step, so it factors once every few hundred steps.
+    pub mass_matrix_reuse: Option<f64>,
 }
 
 impl Default for WorldOptions {
@@ -143,6 +151,7 @@ impl Default for WorldOptions {
             diagnostics: false,
             loop_projection: super::LoopProjection::default(),
             integrator: IntegratorKind::SemiImplicitEuler,
+            mass_matrix_reuse: Some(1e-8),
         }
     }
 }
