@@ -1,6 +1,7 @@
 //! In steady state (the same contacts from step to step), `World::step` performs zero heap
 //! allocations (nor does collision detection): a stack of three boxes resting on the ground, solved by projected Gauss–Seidel,
-//! and a free pendulum without contacts (ABA path).
+//! a free pendulum without contacts (ABA path), and a resting ragdoll (joint damping: the
+//! implicit free motion, with its mass-matrix factor kept and computed again).
 
 use gelenk::collision::MeshOptions;
 use gelenk::math::{Transform, Vec3};
@@ -198,4 +199,30 @@ fn smooth_steps_allocate_nothing() {
         }
     });
     assert_eq!(count, 0, "smooth steps allocated {count} times");
+}
+
+/// A ragdoll at rest (joint damping: the implicit free motion, its factor kept between steps
+/// and factored again when a joint moves) steps without allocating.
+#[test]
+fn a_resting_ragdoll_steps_without_allocating() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/ragdoll_fall.toml");
+    let mut s = gelenk::io::scene::load_file(path).unwrap();
+    s.world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..s.world.options().sleep });
+    for _ in 0..1500 {
+        s.world.step().unwrap();
+    }
+    let elbow = s.world.multibody(0).model().joint_id("elbow_l").unwrap();
+    let iq = s.world.multibody(0).model().idx_q(elbow);
+    let before = s.world.multibody(0).factorizations();
+    let count = allocations_during(|| {
+        for k in 0..100 {
+            if k == 50 {
+                // A joint turned by 1e-6 rad: the factor is computed and kept again.
+                s.world.multibody_mut(0).state.q[iq] += 1e-6;
+            }
+            s.world.step().unwrap();
+        }
+    });
+    assert!(s.world.multibody(0).factorizations() > before, "no factorization in the counted steps");
+    assert_eq!(count, 0, "World::step allocated {count} times in 100 resting steps");
 }

@@ -162,6 +162,7 @@ impl Multibody {
     pub(crate) fn new(model: Model) -> Self {
         let nv = model.nv();
         let data = Data::new(&model);
+        let kept_factor = KeptFactor::new(&model, &data);
         let state = State::new(&model);
         let nb = model.nbodies();
         Self {
@@ -188,7 +189,7 @@ impl Multibody {
             rhs: DVector::zeros(nv),
             factored: false,
             constant_mass_factored: false,
-            kept_factor: KeptFactor::default(),
+            kept_factor,
             factorizations: 0,
             world_velocities: WorldVelocities {
                 start: vec![Motion::zero(); nb],
@@ -439,8 +440,9 @@ fn constant_mass_matrix(model: &Model, data: &mut Data) {
     }
 }
 
-/// A factor of M (+ h·D) kept with the configuration and step it belongs to.
-#[derive(Clone, Debug, Default)]
+/// A factor of M (+ h·D) kept with the configuration and step it belongs to; its buffers have
+/// the sizes of the multibody's `Data` from the start, so keeping one copies and never allocates.
+#[derive(Clone, Debug)]
 struct KeptFactor {
     valid: bool,
     h: f64,
@@ -451,6 +453,17 @@ struct KeptFactor {
 }
 
 impl KeptFactor {
+    fn new(model: &Model, data: &Data) -> Self {
+        Self {
+            valid: false,
+            h: 0.0,
+            q: DVector::zeros(model.nq()),
+            packed: vec![0.0; data.factor_packed.len()],
+            inv_sqrt_d: DVector::zeros(data.factor_inv_sqrt_d.len()),
+            row_coupled: vec![false; data.factor_row_coupled.len()],
+        }
+    }
+
     /// Whether the kept factor is for step `h` and every coordinate of `q` but a floating
     /// root's is within `tolerance` of the kept q. In the body-frame velocities of a free root
     /// (Pinocchio's), M does not depend on the root's pose.
@@ -469,10 +482,10 @@ impl KeptFactor {
     fn keep(&mut self, data: &Data, q: &DVector<f64>, h: f64) {
         self.valid = true;
         self.h = h;
-        self.q.clone_from(q);
-        self.packed.clone_from(&data.factor_packed);
-        self.inv_sqrt_d.clone_from(&data.factor_inv_sqrt_d);
-        self.row_coupled.clone_from(&data.factor_row_coupled);
+        self.q.copy_from(q);
+        self.packed.copy_from_slice(&data.factor_packed);
+        self.inv_sqrt_d.copy_from(&data.factor_inv_sqrt_d);
+        self.row_coupled.copy_from_slice(&data.factor_row_coupled);
     }
 
     fn restore(&self, data: &mut Data) {
