@@ -475,6 +475,12 @@ fn run_options_override_dt_and_solver_before_the_first_step() {
     assert!(scene::run(&mut s, &options, |_| {}).is_ok());
     assert!(scene::parse_solvers("pgs20, clarabel").unwrap().len() == 2);
     assert!(scene::parse_solvers("newton").is_err());
+    // A duration of 1e300 s would step for ever: refused with the number of steps.
+    let options = RunOptions { duration: Some(1e300), ..RunOptions::default() };
+    match scene::run(&mut s, &options, |_| {}) {
+        Err(SceneError::Options(message)) => assert!(message.contains("steps, more than"), "{message}"),
+        other => panic!("expected an options error, got {other:?}"),
+    }
 }
 
 #[test]

@@ -659,7 +659,13 @@ pub fn run(
         return Err(SceneError::Options(format!("duration must be non-negative, got {duration}")));
     }
     let dt = scene.world.options().dt;
-    let steps = (duration / dt - 1e-9).ceil().max(0.0) as u64;
+    let steps = (duration / dt - 1e-9).ceil().max(0.0);
+    if steps > MAX_RUN_STEPS as f64 {
+        return Err(SceneError::Options(format!(
+            "{duration} s at dt = {dt} s is {steps:e} steps, more than {MAX_RUN_STEPS:e} (shorten the duration or lengthen dt)"
+        )));
+    }
+    let steps = steps as u64;
     let every = options.record_every.unwrap_or(scene.record.every) as u64;
 
     let mut recording = Recording {
@@ -889,6 +895,10 @@ fn copies_coincide(dims: [usize; 3], grid: bool, spacing: &Vec3, jitter: f64) ->
         dims[0] > 1 && *spacing == Vec3::zeros()
     }
 }
+
+/// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
+/// `dt` (1e300 s, 1e-300 s) that would only spin.
+const MAX_RUN_STEPS: u64 = 1_000_000_000;
 
 /// Most copies one `count` makes: a scene file describes a scene to step, and a count beyond
 /// this (a typo, a wrapped product) would only exhaust memory while building it.
