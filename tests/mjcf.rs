@@ -318,6 +318,15 @@ fn scene(body: &str) -> String {
 #[test]
 fn bad_documents_give_typed_errors() {
     assert!(matches!(err("<mujoco><worldbody></mujoco>"), MjcfError::Xml { .. }));
+    // A contact exclude naming a body the model does not have (a typo that would let the pair
+    // collide); one naming real bodies loads.
+    let bodies = r#"<worldbody><body name="a"><joint/><geom size="0.1"/><body name="b"><joint/><geom size="0.1"/></body></body></worldbody>"#;
+    let e = err(&format!(r#"<mujoco>{bodies}<contact><exclude body1="a" body2="zzz"/></contact></mujoco>"#));
+    assert!(matches!(&e, MjcfError::Invalid { what, .. } if what.contains("`zzz`")), "{e}");
+    let ok = mjcf::load_str(&format!(
+        r#"<mujoco>{bodies}<contact><exclude body1="a" body2="b"/></contact></mujoco>"#
+    ));
+    assert_eq!(ok.unwrap().contact_excludes, vec![("a".to_string(), "b".to_string())]);
     assert!(matches!(err("<robot/>"), MjcfError::Invalid { .. }));
 
     let e = err(&scene(r#"<body name="b"><joint/><geom name="g" type="cone" size="1"/></body>"#));

@@ -485,7 +485,7 @@ fn load_on_this_thread(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {
                             let body = |a: &str| {
                                 c.attribute(a).map(str::to_string).ok_or_else(|| loader.missing(c, a))
                             };
-                            excludes.push((body("body1")?, body("body2")?));
+                            excludes.push((body("body1")?, body("body2")?, loader.describe(c)));
                         }
                         other => {
                             return Err(loader.unsupported(c, &format!("contact <{other}> (only <exclude>)")))
@@ -1346,8 +1346,21 @@ impl<'a, 'i> Loader<'a, 'i> {
         gravity: Vec3,
         contact_enabled: bool,
         friction: FrictionModel,
-        contact_excludes: Vec<(String, String)>,
+        excludes: Vec<(String, String, String)>,
     ) -> Result<MjcfScene, MjcfError> {
+        // An exclude naming no body is a typo that would silently let the pair collide.
+        for (a, b, element) in &excludes {
+            if let Some(name) =
+                [a, b].into_iter().find(|n| *n != "world" && !self.specs.iter().any(|s| s.name == **n))
+            {
+                return Err(MjcfError::Invalid {
+                    file: self.file.to_string(),
+                    element: element.clone(),
+                    what: format!("`{name}` is not a body of the model"),
+                });
+            }
+        }
+        let contact_excludes: Vec<(String, String)> = excludes.into_iter().map(|(a, b, _)| (a, b)).collect();
         if self.compiler.settotalmass > 0.0 {
             let total: f64 = self.specs.iter().map(|s| s.inertia.mass).sum();
             if total > 0.0 {
