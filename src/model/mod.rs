@@ -333,12 +333,8 @@ impl Model {
     pub fn check_quaternions(&self, q: &[f64]) -> Result<(), DynamicsError> {
         // Squared norms: no square root per joint on the step's path (kinematics checks q).
         for i in 1..self.nbodies() {
-            let quat = match self.joints[i] {
-                Joint::Ball => &q[self.idx_q[i]..self.idx_q[i] + 4],
-                Joint::Free => &q[self.idx_q[i] + 3..self.idx_q[i] + 7],
-                _ => continue,
-            };
-            let squared: f64 = quat.iter().map(|x| x * x).sum();
+            let Some(r) = self.joints[i].quaternion_range() else { continue };
+            let squared: f64 = q[self.idx_q[i] + r.start..self.idx_q[i] + r.end].iter().map(|x| x * x).sum();
             // Written so that a NaN passes here and is reported as not finite.
             if squared < MIN_QUATERNION_NORM * MIN_QUATERNION_NORM {
                 return Err(DynamicsError::DegenerateQuaternion {

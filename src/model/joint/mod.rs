@@ -270,36 +270,35 @@ impl Joint {
         }
     }
 
+    /// Where the quaternion `[x, y, z, w]` sits among the joint's coordinates (ball, free);
+    /// `None` for other kinds.
+    pub fn quaternion_range(&self) -> Option<std::ops::Range<usize>> {
+        match self {
+            Joint::Ball => Some(0..4),
+            Joint::Free => Some(3..7),
+            _ => None,
+        }
+    }
+
     /// Norm of the quaternion part of `q` (ball, free); `None` for other kinds.
     pub fn quaternion_norm(&self, q: &[f64]) -> Option<f64> {
-        let quat = match self {
-            Joint::Ball => &q[0..4],
-            Joint::Free => &q[3..7],
-            _ => return None,
-        };
-        Some(quat.iter().map(|x| x * x).sum::<f64>().sqrt())
+        self.quaternion_range().map(|r| q[r].iter().map(|x| x * x).sum::<f64>().sqrt())
     }
 
     /// Renormalizes the quaternion part of `q` (ball, free); no-op for other kinds.
     pub fn normalize(&self, q: &mut [f64]) {
-        let quat = match self {
-            Joint::Ball => &mut q[0..4],
-            Joint::Free => &mut q[3..7],
-            _ => return,
-        };
-        let n = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
-        quat.iter_mut().for_each(|x| *x /= n);
+        if let Some(r) = self.quaternion_range() {
+            let quat = &mut q[r];
+            let n = quat.iter().map(|x| x * x).sum::<f64>().sqrt();
+            quat.iter_mut().for_each(|x| *x /= n);
+        }
     }
 
     /// A random configuration: each coordinate uniform within `[lower, upper]` where both are
     /// finite, otherwise uniform in [−π, π] for angles and [−1, 1] m for lengths; quaternions are
     /// uniform on the unit sphere (Shoemake).
     pub fn random<R: Rng + ?Sized>(&self, rng: &mut R, lower: &[f64], upper: &[f64], q_out: &mut [f64]) {
-        let quat_range = match self {
-            Joint::Ball => 0..4,
-            Joint::Free => 3..7,
-            _ => 0..0,
-        };
+        let quat_range = self.quaternion_range().unwrap_or(0..0);
         for k in 0..q_out.len() {
             if quat_range.contains(&k) {
                 continue;
