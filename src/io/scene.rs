@@ -1046,7 +1046,7 @@ impl<'de> Deserialize<'de> for MassReuseSetting {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         match toml::Value::deserialize(d)? {
             toml::Value::Boolean(on) => {
-                Ok(Self(on.then_some(WorldOptions::default().mass_matrix_reuse).flatten()))
+                Ok(Self(if on { WorldOptions::default().mass_matrix_reuse } else { None }))
             }
             toml::Value::Float(x) if x.is_finite() && x > 0.0 => Ok(Self(Some(x))),
             other => {
