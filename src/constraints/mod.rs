@@ -18,6 +18,7 @@ mod contact;
 mod joints;
 mod loops;
 
+pub(crate) use assemble::BuiltRows;
 pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
 pub use joints::{

@@ -84,7 +84,7 @@
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
-//! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`]; true: 1e-8) |
+//! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored, and the constraint problem's W built on it while the rows stay the same: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`]; true: 1e-8) |
 //! | | `contact_reuse` | keep a pair's contact points while it moves less than this, refreshing only their distances: `true`, `false` or `{ translation = m, rotation = rad }` ([`crate::collision::ManifoldReuse`]; true: 1e-8 m, 1e-7 rad) |
 //! | | `sleep` | let resting bodies sleep (true) |
 //! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |

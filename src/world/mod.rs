@@ -27,8 +27,9 @@ pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 use crate::collision::{Attachment, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows_with, add_joint_friction_rows, add_joint_limit_rows_speculative,
-    add_loop_closure_rows_between, add_motor_row, ConstraintProblem, ContactParameters, DroppedLimit,
-    FrictionModel, LimitVelocities, LoopClosure, ProblemBuilder, RowOrigin, Speculation, TreeFactor,
+    add_loop_closure_rows_between, add_motor_row, BuiltRows, ConstraintProblem, ContactParameters,
+    DroppedLimit, FrictionModel, LimitVelocities, LoopClosure, ProblemBuilder, RowOrigin, Speculation,
+    TreeFactor,
 };
 use crate::error::CollisionError;
 use crate::error::DynamicsError;
@@ -145,6 +146,12 @@ pub struct World {
     chain: SolverChain,
     builder: ProblemBuilder,
     problem: ConstraintProblem,
+    /// The rows `problem`'s W was built from, and per multibody the factor it was built on
+    /// ([`Multibody::factor_identity`]): a step whose rows and factors are the same keeps W.
+    built_rows: BuiltRows,
+    built_factors: Vec<Option<u64>>,
+    /// How many times a step built W from its rows ([`World::problem_builds`]).
+    problem_builds: u64,
     lambda: DVector<f64>,
     /// Last step's row keys and impulses, in row order ([`World::warm_start`]).
     warm_keys: Vec<u64>,
@@ -203,6 +210,9 @@ impl World {
             projections: Vec::new(),
             smooth: smooth::SmoothSteppers::default(),
             problem: ConstraintProblem::default(),
+            built_rows: BuiltRows::default(),
+            built_factors: Vec::new(),
+            problem_builds: 0,
             lambda: DVector::zeros(0),
             warm_keys: Vec::new(),
             warm_values: Vec::new(),
@@ -629,6 +639,7 @@ impl World {
         } else {
             self.problem =
                 ConstraintProblem { friction: self.options.friction, ..ConstraintProblem::default() };
+            self.built_rows.forget();
             self.lambda = DVector::zeros(0);
             lap(3, &mut clock);
         }
@@ -873,9 +884,33 @@ impl World {
     }
 
     /// The constraint problem of the rows in `self.builder` (W over each multibody's factor).
+    /// When every multibody kept the factor W was last built on and the rows are the same up
+    /// to [`WorldOptions::mass_matrix_reuse`]'s tolerance (a body at rest), W stands and only
+    /// the bias is new ([`ProblemBuilder::refresh_bias`]).
     fn build_problem(&mut self) {
+        if let Some(tolerance) = self.options.mass_matrix_reuse {
+            let same_factors = self.built_factors.len() == self.bodies.len()
+                && self.bodies.iter().zip(&self.built_factors).all(|(b, f)| b.factor_identity() == *f);
+            if same_factors && self.built_rows.same_rows(&self.builder, tolerance) {
+                self.builder.refresh_bias(&self.v_free_all, &mut self.problem);
+                return;
+            }
+        }
         let factor_of = block_factors(&self.bodies, &self.block_owner);
         self.builder.build_into_blocks(&self.v_free_all, factor_of, false, &mut self.problem);
+        self.problem_builds += 1;
+        if self.options.mass_matrix_reuse.is_some() {
+            self.built_rows.record(&self.builder);
+            self.built_factors.clear();
+            self.built_factors.extend(self.bodies.iter().map(Multibody::factor_identity));
+        }
+    }
+
+    /// How many times a step has built the constraint problem's W = J L⁻¹ D^{-1/2} (and
+    /// A = W Wᵀ) from its rows; steps whose rows and mass-matrix factors are those of the last
+    /// build keep it (see [`WorldOptions::mass_matrix_reuse`]).
+    pub fn problem_builds(&self) -> u64 {
+        self.problem_builds
     }
 
     /// `v_free_all += M⁻¹ Jᵀ λ`: the velocity after the solved impulses.
@@ -1357,6 +1392,44 @@ mod tests {
             compared += 1;
         }
         assert!(compared >= 40, "{compared} of 50 steps kept the factor");
+    }
+
+    #[test]
+    fn a_kept_delassus_matrix_and_a_new_one_pose_the_same_problem() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/ragdoll_fall.toml");
+        let mut s = crate::io::scene::load_file(path).unwrap();
+        s.world.set_sleep(crate::world::SleepOptions { enabled: false, ..s.world.options().sleep });
+        for _ in 0..1500 {
+            s.world.step().unwrap();
+        }
+        let w = &mut s.world;
+        let mut compared = 0;
+        for _ in 0..50 {
+            let builds = w.problem_builds();
+            w.step().unwrap();
+            if w.problem_builds() != builds {
+                continue;
+            }
+            // The same rows built anew, on the factors and free velocity of this step.
+            let mut v_free = w.v_free_all.clone();
+            for b in &w.bodies {
+                v_free.rows_mut(b.col, b.model.nv()).copy_from(&b.v_free);
+            }
+            let mut fresh = ConstraintProblem::default();
+            let factor_of = block_factors(&w.bodies, &w.block_owner);
+            w.builder.build_into_blocks(&v_free, factor_of, false, &mut fresh);
+            let (kept, new) = (w.problem.delassus_dense(), fresh.delassus_dense());
+            let scale = new.amax();
+            let gap = (&*kept - &*new).amax();
+            assert!(gap <= 1e-8 * scale, "kept A against a new one: {gap:e} of {scale:e}");
+            let bias_gap = (&w.problem.bias - &fresh.bias).amax();
+            assert!(bias_gap <= 1e-12, "bias: {bias_gap:e} m/s");
+            assert_eq!(w.problem.laws, fresh.laws);
+            assert_eq!(w.problem.contacts, fresh.contacts);
+            assert!(fresh.rows() > 20, "{} rows", fresh.rows());
+            compared += 1;
+        }
+        assert!(compared >= 40, "{compared} of 50 resting steps kept W");
     }
 
     #[test]

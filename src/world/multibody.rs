@@ -378,6 +378,14 @@ impl Multibody {
         self.factorizations
     }
 
+    /// Which factor of M `data` holds for the constraint rows: None when the multibody cannot
+    /// take impulses this step (asleep, kinematic, or not factored), else the count of
+    /// factorizations, which changes whenever the factor does (a reused factor, or the constant
+    /// M of free bodies, keeps it).
+    pub(crate) fn factor_identity(&self) -> Option<u64> {
+        (!(self.asleep || self.kinematic) && self.factored).then_some(self.factorizations)
+    }
+
     /// Free joints: turns the body-frame rate `v̇` of the origin's velocity into its classical
     /// acceleration `v̇ + ω × v`, so that `v_free`'s linear part is the origin's velocity at the end
     /// of the step expressed in the axes of the start of the step (where the constraint rows

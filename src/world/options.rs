@@ -130,6 +130,10 @@ pub struct WorldOptions {
     /// factors). M's entries then lag by a first-order change of at most this much in a
     /// coordinate (relative 1e-8 of M's entries at the default); a resting ragdoll's joints move
     /// by less than a nanoradian per step, so it factors once every few hundred steps.
+    /// The constraint problem's W = J L⁻¹ D^{-1/2} (and A = W Wᵀ) is kept with the factor it was
+    /// built on while the step's rows are the same rows with every Jacobian entry within this
+    /// tolerance (relative to the larger of 1 and the entry) of those W was built from: only the
+    /// bias J v_free − u* is formed anew ([`super::World::problem_builds`] counts the builds).
     pub mass_matrix_reuse: Option<f64>,
 }
 
