@@ -680,8 +680,32 @@ impl ProblemBuilder {
     /// and the solvers' kept Wᵀλ stand. O(entries of J) instead of O(path · depth) per row.
     pub(crate) fn refresh_bias(&self, v_free: &DVector<f64>, problem: &mut ConstraintProblem) {
         let v_free = v_free.as_slice();
+        // A contact's three rows share their point rates: the relative velocity of its points
+        // once, then one dot product per direction.
+        let mut point_velocity: Option<([(usize, usize); 2], Vec3)> = None;
         for i in 0..self.len() {
-            problem.bias[i] = self.row_dot(i, v_free) - self.targets[i];
+            let velocity = match self.forms[i] {
+                RowForm::Rates(RateRow { sides, direction }) => {
+                    let relative = match point_velocity {
+                        Some((kept, relative)) if kept == sides => relative,
+                        _ => {
+                            let mut sum = [0.0; 3];
+                            for &(start, end) in &sides {
+                                for (c, u) in &self.rates[start..end] {
+                                    let x = v_free[*c];
+                                    sum = [sum[0] + u.x * x, sum[1] + u.y * x, sum[2] + u.z * x];
+                                }
+                            }
+                            let relative = Vec3::new(sum[0], sum[1], sum[2]);
+                            point_velocity = Some((sides, relative));
+                            relative
+                        }
+                    };
+                    direction.dot(&relative)
+                }
+                _ => self.row_dot(i, v_free),
+            };
+            problem.bias[i] = velocity - self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }
@@ -914,8 +938,9 @@ impl BuiltRows {
     /// coefficients, stored entries) within `tolerance` of the recorded one, relative to the
     /// larger of 1 and its size (directions are unit, point rates m per rad or 1).
     pub(crate) fn same_rows(&self, builder: &ProblemBuilder, tolerance: f64) -> bool {
+        // Branch-free (`&`, not `&&`) over the many point rates: one compare per entry.
         let close = |a: f64, b: f64| (a - b).abs() <= tolerance * b.abs().max(1.0);
-        let close3 = |a: &Vec3, b: &Vec3| (0..3).all(|k| close(a[k], b[k]));
+        let close3 = |a: &Vec3, b: &Vec3| close(a.x, b.x) & close(a.y, b.y) & close(a.z, b.z);
         let same_form = |a: &RowForm, b: &RowForm| match (a, b) {
             (RowForm::Stored, RowForm::Stored) => true,
             (RowForm::Rates(a), RowForm::Rates(b)) => {
@@ -939,8 +964,12 @@ impl BuiltRows {
             && self.rates.len() == builder.rates.len()
             && self.values.len() == builder.values.len()
             && builder.forms.iter().zip(&self.forms).all(|(a, b)| same_form(a, b))
-            && builder.rates.iter().zip(&self.rates).all(|(a, b)| a.0 == b.0 && close3(&a.1, &b.1))
-            && builder.values.iter().zip(&self.values).all(|(a, b)| close(*a, *b))
+            && builder
+                .rates
+                .iter()
+                .zip(&self.rates)
+                .fold(true, |same, (a, b)| same & (a.0 == b.0) & close3(&a.1, &b.1))
+            && builder.values.iter().zip(&self.values).fold(true, |same, (a, b)| same & close(*a, *b))
     }
 }
 

@@ -406,6 +406,19 @@ impl ConstraintProblem {
         }
     }
 
+    /// Writes into `sum` (nv entries) the Wᵀλ kept for exactly these impulses `lambda`
+    /// ([`Self::keep_impulse_sum`]), if one is kept; false otherwise. A step whose W stands
+    /// (see [`crate::world::WorldOptions::mass_matrix_reuse`]) and whose warm start is the last
+    /// solve's λ starts its sweeps from it.
+    pub(crate) fn kept_impulse_sum(&self, lambda: &[f64], sum: &mut [f64]) -> bool {
+        let kept = self.kept_sum.0.borrow();
+        let found = kept.len() == sum.len() && *self.kept_lambda.0.borrow() == lambda;
+        if found {
+            sum.copy_from_slice(&kept);
+        }
+        found
+    }
+
     /// Records `sum` = Wᵀλ (nv entries) as kept by a solver for its impulses λ, so that
     /// [`Self::apply_impulses`] of the same λ skips forming it.
     pub(crate) fn keep_impulse_sum(&self, lambda: &[f64], sum: &[f64]) {

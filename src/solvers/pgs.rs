@@ -201,10 +201,12 @@ impl ConstraintSolver for PgsSolver {
             if self.workspace.dv.len() != nv {
                 self.workspace.dv = DVector::zeros(nv);
             }
-            self.workspace.dv.fill(0.0);
-            for i in 0..n {
-                if lambda[i] != 0.0 {
-                    axpy_blocks(problem, i, lambda[i], &mut self.workspace.dv);
+            if !problem.kept_impulse_sum(lambda.as_slice(), self.workspace.dv.as_mut_slice()) {
+                self.workspace.dv.fill(0.0);
+                for i in 0..n {
+                    if lambda[i] != 0.0 {
+                        axpy_blocks(problem, i, lambda[i], &mut self.workspace.dv);
+                    }
                 }
             }
         }
