@@ -1485,6 +1485,60 @@ mod tests {
     }
 
     #[test]
+    fn recorded_rows_are_the_same_within_the_tolerance_only_and_keep_w_with_a_new_bias() {
+        let (model, data, _, mut rng) = factored_ragdoll(5);
+        let nv = model.nv();
+        let last = model.nbodies() - 1;
+        let mut base = ProblemBuilder::new(nv, FrictionModel::Cone);
+        let side = random_rates(&mut base, &model, last, NO_DOF, &mut rng);
+        let directions = [Vec3::z(), Vec3::x(), Vec3::y()];
+        base.push_point_contact([side, (side.1, side.1)], directions, 1e-6, RowOrigin::Other, 0.5, 0.5);
+        let first = last_dof_of(&model, last / 2);
+        base.push_joint_row(RowLaw::Unilateral, 0.1, 0.0, RowOrigin::Other, first, &[1.0]);
+        let mut recorded = BuiltRows::default();
+        assert!(!recorded.same_rows(&base, 1e-8), "nothing recorded yet");
+        recorded.record(&base);
+        assert!(recorded.same_rows(&base, 1e-8));
+        // A point rate moved by half the tolerance is the same row; by twice it, not.
+        let mut moved = base.clone();
+        let scale = moved.rates[0].1.x.abs().max(1.0);
+        moved.rates[0].1.x += 0.5e-8 * scale;
+        assert!(recorded.same_rows(&moved, 1e-8));
+        moved.rates[0].1.x += 2e-8 * scale;
+        assert!(!recorded.same_rows(&moved, 1e-8));
+        // A turned direction, another joint coefficient, another law: not the same rows.
+        let mut turned = base.clone();
+        let RowForm::Rates(row) = &mut turned.forms[1] else { unreachable!() };
+        row.direction.y += 1e-6;
+        assert!(!recorded.same_rows(&turned, 1e-8));
+        let mut scaled = base.clone();
+        let RowForm::Joint { coefficients, .. } = &mut scaled.forms[3] else { unreachable!() };
+        coefficients[0] = 1.0 + 1e-6;
+        assert!(!recorded.same_rows(&scaled, 1e-8));
+        let mut other_law = base.clone();
+        other_law.laws[3] = RowLaw::Bilateral;
+        assert!(!recorded.same_rows(&other_law, 1e-8));
+        recorded.forget();
+        assert!(!recorded.same_rows(&base, 1e-8));
+        // The kept problem with a new free velocity and target: the bias of a new build.
+        let factor = TreeFactor::new(&model, &data);
+        let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));
+        let mut kept = ConstraintProblem::default();
+        base.build_into(&DVector::zeros(nv), factor, &mut kept);
+        base.set_target(3, -0.25);
+        base.refresh_bias(&v_free, &mut kept);
+        let mut fresh = ConstraintProblem::default();
+        base.build_into(&v_free, factor, &mut fresh);
+        for i in 0..base.len() {
+            let (a, b) = (kept.bias[i], fresh.bias[i]);
+            assert!((a - b).abs() <= 1e-14, "row {i}: {a} against {b}");
+        }
+        assert_eq!(kept.target, fresh.target);
+        assert_eq!(kept.regularization, fresh.regularization);
+        assert_eq!(kept.delassus, fresh.delassus);
+    }
+
+    #[test]
     #[cfg(debug_assertions)]
     #[should_panic(expected = "not one body's path to the root")]
     fn point_rates_that_skip_a_dof_of_the_path_are_refused() {
