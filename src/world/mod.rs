@@ -903,6 +903,9 @@ impl World {
             self.built_rows.record(&self.builder);
             self.built_factors.clear();
             self.built_factors.extend(self.bodies.iter().map(Multibody::factor_identity));
+        } else {
+            // A record of older rows must not outlive this W (the reuse may be switched on again).
+            self.built_rows.forget();
         }
     }
 
