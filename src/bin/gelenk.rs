@@ -691,6 +691,7 @@ fn bench_world(
     let (mut medians, mut means, mut phases) = (Vec::new(), Vec::new(), Vec::new());
     let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
         (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
+    let mut builds = 0;
     for _ in 0..rounds {
         let mut target = BenchTarget::load(path)?;
         let world = target.world();
@@ -707,6 +708,7 @@ fn bench_world(
         let mut phase = [0u64; 6];
         (rows, fallbacks, iterations) = (0, 0, 0);
         solver_usage.clear();
+        let builds_before = target.world().problem_builds();
         for _ in 0..steps {
             let start = Instant::now();
             let stats = target.step(controls)?;
@@ -721,6 +723,7 @@ fn bench_world(
                 *solver_usage.entry(stats.solver).or_insert(0usize) += 1;
             }
         }
+        builds = target.world().problem_builds() - builds_before;
         means.push(times.iter().sum::<f64>() / steps.max(1) as f64);
         times.sort_by(f64::total_cmp);
         medians.push(times.get(times.len() / 2).copied().unwrap_or(0.0));
@@ -742,7 +745,7 @@ fn bench_world(
                    "median_us_per_step": median_us, "mean_us_per_step": mean_us,
                    "phase_mean_us": phase_json, "max_rows": rows, "fallbacks": fallbacks,
                    "mean_iterations": iterations as f64 / steps.max(1) as f64,
-                   "solver_usage": solver_usage})
+                   "solver_usage": solver_usage, "problem_builds": builds})
         );
     } else {
         println!(
@@ -752,7 +755,7 @@ fn bench_world(
         let parts: Vec<String> = PHASES.iter().zip(&phase).map(|(n, us)| format!("{n} {us:.1}")).collect();
         println!("mean µs per phase: {}", parts.join(", "));
         println!(
-            "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step in the last episode",
+            "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step, W built {builds} times (World::problem_builds) in the last episode",
             iterations as f64 / steps.max(1) as f64
         );
     }
