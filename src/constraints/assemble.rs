@@ -705,7 +705,16 @@ impl ProblemBuilder {
                 }
                 _ => self.row_dot(i, v_free),
             };
-            problem.bias[i] = velocity - self.targets[i];
+            problem.bias[i] = velocity;
+        }
+        self.finish_problem(problem);
+    }
+
+    /// The rest of `problem` once its bias holds J v_free: b = J v_free − u*, the targets u*,
+    /// the regularisation, laws, contact blocks, origins and friction model of the rows.
+    fn finish_problem(&self, problem: &mut ConstraintProblem) {
+        for i in 0..self.len() {
+            problem.bias[i] -= self.targets[i];
             problem.target[i] = self.targets[i];
             problem.regularization[i] = self.softness[i];
         }
@@ -885,15 +894,7 @@ impl ProblemBuilder {
                 problem.delassus = DMatrix::zeros(0, 0);
             }
         }
-        for i in 0..n {
-            problem.bias[i] -= self.targets[i];
-            problem.target[i] = self.targets[i];
-            problem.regularization[i] = self.softness[i];
-        }
-        problem.laws.clone_from(&self.laws);
-        problem.contacts.clone_from(&self.contacts);
-        problem.origins.clone_from(&self.origins);
-        problem.friction = self.friction;
+        self.finish_problem(problem);
     }
 }
 
