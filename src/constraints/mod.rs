@@ -286,6 +286,13 @@ impl ConstraintProblem {
         self.delassus.nrows() != self.rows() && !self.sparsity.is_empty()
     }
 
+    /// A's diagonal A_ii = ‖W_i‖² as assembly kept it (matrix-free problems), else `None`
+    /// (then [`Self::delassus_entry`] per row).
+    pub(crate) fn kept_diagonal(&self) -> Option<&[f64]> {
+        let norms = &self.sparsity.row_norm2;
+        (self.is_matrix_free() && norms.len() == self.rows()).then_some(&norms[..])
+    }
+
     /// A_ij, from the dense A or, matrix-free, as W_i · W_j over the blocks both rows touch.
     pub fn delassus_entry(&self, i: usize, j: usize) -> f64 {
         if !self.is_matrix_free() {
@@ -334,10 +341,22 @@ impl ConstraintProblem {
 
     /// Row velocities `w = (A + R) λ + b` written into `w` (matrix-free: W (Wᵀλ) + R λ + b).
     pub fn velocities(&self, lambda: &DVector<f64>, w: &mut DVector<f64>) {
+        self.velocities_with_sum(lambda, w, &mut self.scratch.0.borrow_mut());
+    }
+
+    /// [`Self::velocities`], leaving Wᵀλ (length nv) in `s` when the problem is matrix-free
+    /// (true then; false, `s` untouched, when A is formed): a solver that keeps Wᵀλ takes it
+    /// from there instead of forming it again.
+    pub(crate) fn velocities_with_sum(
+        &self,
+        lambda: &DVector<f64>,
+        w: &mut DVector<f64>,
+        s: &mut Vec<f64>,
+    ) -> bool {
         w.copy_from(&self.bias);
-        if self.is_matrix_free() {
+        let matrix_free = self.is_matrix_free();
+        if matrix_free {
             let sp = &self.sparsity;
-            let mut s = self.scratch.0.borrow_mut();
             s.clear();
             s.resize(sp.nv, 0.0);
             for (i, &l) in lambda.iter().enumerate() {
@@ -361,6 +380,7 @@ impl ConstraintProblem {
         for i in 0..w.len() {
             w[i] += self.regularization[i] * lambda[i];
         }
+        matrix_free
     }
 
     /// Adds the velocity change of impulses λ, `M⁻¹Jᵀλ`, to `v` (length nv): from the dense

@@ -176,9 +176,16 @@ impl ConstraintSolver for PgsSolver {
         }
         let a = &problem.delassus;
         self.workspace.diagonal.clear();
-        self.workspace
-            .diagonal
-            .extend((0..n).map(|i| problem.delassus_entry(i, i) + problem.regularization[i]));
+        match problem.kept_diagonal() {
+            Some(a) => self
+                .workspace
+                .diagonal
+                .extend(a.iter().zip(problem.regularization.iter()).map(|(a, r)| a + r)),
+            None => self
+                .workspace
+                .diagonal
+                .extend((0..n).map(|i| problem.delassus_entry(i, i) + problem.regularization[i])),
+        }
         self.workspace.coupling.clear();
         self.workspace.coupling.extend((0..problem.contacts.len()).map(|c| problem.friction_coupling(c)));
         let mut gamma = std::mem::take(&mut self.workspace.gamma);
@@ -429,7 +436,10 @@ impl ConstraintSolver for PgsSolver {
                 }
                 if let SubspaceOutcome::Accepted(reached) = outcome {
                     lambda.copy_from(&ws.candidate);
-                    if sparse {
+                    if sparse && ws.sum_valid {
+                        // Wᵀλ as the candidate's residuals formed it (the same sums, same order).
+                        dv.borrow_mut().as_mut_slice().copy_from_slice(&ws.candidate_sum);
+                    } else if sparse {
                         let mut dv = dv.borrow_mut();
                         dv.fill(0.0);
                         for i in 0..n {

@@ -133,7 +133,14 @@ pub(crate) fn residuals_at_velocities(
     w: &[f64],
 ) -> Residuals {
     let n = problem.rows();
-    let d = |i: usize| (problem.delassus_entry(i, i) + problem.regularization[i]).max(f64::MIN_POSITIVE);
+    let kept = problem.kept_diagonal();
+    let d = |i: usize| {
+        let a = match kept {
+            Some(a) => a[i],
+            None => problem.delassus_entry(i, i),
+        };
+        (a + problem.regularization[i]).max(f64::MIN_POSITIVE)
+    };
     let mut r = Residuals::default();
     let frictionless = problem.contacts.iter().all(|c| c.mu == 0.0 && c.mu2 == 0.0);
     let mut qp = QpResiduals::default();

@@ -211,6 +211,10 @@ pub(crate) struct SubspaceWorkspace {
     w: DVector<f64>,
     /// The projected result.
     pub(crate) candidate: DVector<f64>,
+    /// Wᵀ `candidate` (length nv), formed with the candidate's residuals when `sum_valid`
+    /// (matrix-free problems): PGS takes its kept Wᵀλ from here on acceptance.
+    pub(crate) candidate_sum: Vec<f64>,
+    pub(crate) sum_valid: bool,
     /// The residuals of `candidate`, once a step has computed them.
     pub(crate) residuals: Option<super::Residuals>,
     /// Reduced solves (rounds) of the last step.
@@ -297,6 +301,7 @@ pub(crate) fn subspace_step(
         None => residuals(problem, lambda, &mut ws.w),
     };
     ws.residuals = None;
+    ws.sum_valid = false;
     ws.rounds = 0;
     ws.start_residual = current.exact();
     ws.released = None;
@@ -315,11 +320,6 @@ pub(crate) fn subspace_step(
         ws.candidate = candidate;
         return SubspaceOutcome::Skipped;
     }
-    // ws.w holds the velocities at λ: still those of the candidate unless the projection or
-    // the cone placement of sliding contacts moved it.
-    if candidate != *lambda {
-        problem.velocities(&candidate, &mut ws.w);
-    }
     // Only the rows the units touch move or are read: A + R over them, w kept up to date
     // from their changes (the other rows' λ stay as they are).
     ws.local.clear();
@@ -335,6 +335,24 @@ pub(crate) fn subspace_step(
     }
     fill_gram(problem, ws);
     let m = ws.rows.len();
+    // ws.w holds the velocities at λ: still those of the candidate unless the projection or
+    // the placement of contacts on their cone or pyramid moved it. From here on only w over
+    // the rows is read (the residuals at the end form all of it afresh): when every moved
+    // impulse is one of the rows, (A + R) over them gives the change, where forming w again
+    // takes two passes over W (ragdoll landings: after 553 of 807 placements).
+    if candidate != *lambda {
+        let among_rows = (0..n).all(|i| candidate[i] == lambda[i] || ws.local[i] != usize::MAX);
+        if among_rows {
+            ws.delta.clear();
+            ws.delta.extend(ws.rows.iter().map(|&r| candidate[r] - lambda[r]));
+            for a in 0..m {
+                let change = crate::math::dot(&ws.gram[a * m..(a + 1) * m], &ws.delta);
+                ws.w[ws.rows[a]] += change;
+            }
+        } else {
+            problem.velocities(&candidate, &mut ws.w);
+        }
+    }
     ws.start.clear();
     ws.start.extend(ws.rows.iter().map(|&r| candidate[r]));
     ws.w_start.clear();
@@ -423,7 +441,7 @@ pub(crate) fn subspace_step(
             // Another Newton round on the sliding directions would follow: stop once the iterate
             // is good enough (a residual costs a product with A, a round a reduced factorisation;
             // the humanoid's sliding feet needed a third round only to shrink the turn to 1e-10).
-            let r = residuals(problem, &candidate, &mut ws.w);
+            let r = candidate_residuals(problem, &candidate, ws);
             if r.exact() <= NEWTON_STOP * good_enough {
                 reached = Some(r);
                 break;
@@ -438,7 +456,15 @@ pub(crate) fn subspace_step(
     if !solved {
         return SubspaceOutcome::Skipped;
     }
-    let reached = reached.unwrap_or_else(|| residuals(problem, &ws.candidate, &mut ws.w));
+    let reached = match reached {
+        Some(r) => r,
+        None => {
+            let candidate = std::mem::replace(&mut ws.candidate, DVector::zeros(0));
+            let r = candidate_residuals(problem, &candidate, ws);
+            ws.candidate = candidate;
+            r
+        }
+    };
     let exact = reached.exact();
     ws.residuals = Some(reached);
     if exact < current {
@@ -446,6 +472,17 @@ pub(crate) fn subspace_step(
     } else {
         SubspaceOutcome::Rejected(exact)
     }
+}
+
+/// The residuals of `candidate` (velocities into `ws.w`), keeping Wᵀ `candidate` in
+/// `ws.candidate_sum`.
+fn candidate_residuals(
+    problem: &ConstraintProblem,
+    candidate: &DVector<f64>,
+    ws: &mut SubspaceWorkspace,
+) -> super::Residuals {
+    ws.sum_valid = problem.velocities_with_sum(candidate, &mut ws.w, &mut ws.candidate_sum);
+    residuals_at_velocities(problem, candidate, ws.w.as_slice())
 }
 
 /// Most entries of the lane copy of W's rows that [`fill_gram`] makes (rows × velocity

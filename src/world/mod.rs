@@ -1436,6 +1436,42 @@ mod tests {
         assert!(compared >= 40, "{compared} of 50 resting steps kept W");
     }
 
+    /// Through the ragdoll's landing (subspace steps accepted, their Wᵀλ handed to PGS), the
+    /// Wᵀλ that the solve leaves for the step's impulses (which `apply_impulses` turns into the
+    /// velocity change) is Wᵀλ formed afresh, to 1e-9 of its size.
+    #[test]
+    fn the_impulse_sum_a_solve_keeps_is_that_of_its_impulses() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/ragdoll_fall.toml");
+        let mut s = crate::io::scene::load_file(path).unwrap();
+        let w = &mut s.world;
+        let mut compared = 0;
+        for step in 0..700 {
+            w.step().unwrap();
+            let p = &w.problem;
+            if step < 200 || !p.is_matrix_free() || p.rows() == 0 {
+                continue;
+            }
+            let lambda = w.lambda.as_slice();
+            let mut kept = vec![0.0; p.sparsity.nv];
+            if !p.kept_impulse_sum(lambda, &mut kept) {
+                continue;
+            }
+            let mut fresh = vec![0.0; p.sparsity.nv];
+            for (i, &l) in lambda.iter().enumerate() {
+                for (col, wi) in p.sparsity.row_spans(i) {
+                    for (f, wi) in fresh[col..col + wi.len()].iter_mut().zip(wi) {
+                        *f += l * wi;
+                    }
+                }
+            }
+            let scale = fresh.iter().fold(1e-6_f64, |m, x| m.max(x.abs()));
+            let gap = kept.iter().zip(&fresh).fold(0.0_f64, |m, (k, f)| m.max((k - f).abs()));
+            assert!(gap <= 1e-9 * scale, "step {step}: kept Wᵀλ off by {gap:e} of {scale:e}");
+            compared += 1;
+        }
+        assert!(compared >= 300, "{compared} of 500 landing steps compared");
+    }
+
     #[test]
     fn a_contact_whose_feature_id_changed_keeps_its_impulses_and_one_that_moved_does_not() {
         let mut w = resting_box();
