@@ -83,6 +83,32 @@ pub(crate) fn axpy(x: &mut [f64], a: f64, y: &[f64]) {
     }
 }
 
+/// `x += a y + b z`, bit for bit [`axpy`] with `y` then with `z`, in one pass over `x` (a
+/// contact's two friction rows of W moving the same velocities).
+pub(crate) fn axpy2(x: &mut [f64], a: f64, y: &[f64], b: f64, z: &[f64]) {
+    for ((x, y), z) in x.iter_mut().zip(y).zip(z) {
+        *x = (*x + a * y) + b * z;
+    }
+}
+
+/// (a · x, b · x), bit for bit two [`dot`] calls, in one pass over `x`.
+pub(crate) fn dot2(a: &[f64], b: &[f64], x: &[f64]) -> (f64, f64) {
+    let (mut s, mut t) = ([0.0; 4], [0.0; 4]);
+    let (ca, cb, cx) = (a.chunks_exact(4), b.chunks_exact(4), x.chunks_exact(4));
+    let (ra, rb, rx) = (ca.remainder(), cb.remainder(), cx.remainder());
+    for ((p, q), y) in ca.zip(cb).zip(cx) {
+        for k in 0..4 {
+            s[k] += p[k] * y[k];
+            t[k] += q[k] * y[k];
+        }
+    }
+    for ((p, q), y) in ra.iter().zip(rb).zip(rx) {
+        s[0] += p * y;
+        t[0] += q * y;
+    }
+    ((s[0] + s[1]) + (s[2] + s[3]), (t[0] + t[1]) + (t[2] + t[3]))
+}
+
 /// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
 /// bound by the latency of one addition per entry).
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -116,6 +142,29 @@ mod tests {
             axpy(&mut x, a, &y);
             let plain: Vec<f64> = x0.iter().zip(&y).map(|(x, y)| x + a * y).collect();
             assert_eq!(x, plain, "length {len}");
+        }
+    }
+
+    /// The fused pair kernels give the bits of the single ones, every length and remainder.
+    #[test]
+    fn the_pair_kernels_equal_two_single_ones_bit_for_bit() {
+        for len in 0..13 {
+            let y: Vec<f64> = (0..len).map(|k| (k as f64 * 0.37).sin() * 1e3).collect();
+            let z: Vec<f64> = (0..len).map(|k| (k as f64 * 2.3).cos() * 0.1).collect();
+            let x0: Vec<f64> = (0..len).map(|k| (k as f64 * 1.9).cos() / 7.0).collect();
+            let (a, b) = (-0.123_456_789, 3.3e-4);
+            let mut single = x0.clone();
+            axpy(&mut single, a, &y);
+            axpy(&mut single, b, &z);
+            let mut pair = x0.clone();
+            axpy2(&mut pair, a, &y, b, &z);
+            assert_eq!(single, pair, "length {len}");
+            let (d1, d2) = dot2(&y, &z, &x0);
+            assert_eq!(
+                (d1.to_bits(), d2.to_bits()),
+                (dot(&y, &x0).to_bits(), dot(&z, &x0).to_bits()),
+                "length {len}"
+            );
         }
     }
 }

@@ -95,6 +95,9 @@ pub struct PgsWorkspace {
     diagonal: Vec<f64>,
     /// A between the two friction rows of each contact.
     coupling: Vec<f64>,
+    /// Per contact, whether its two friction rows of W have the same runs (as assembly lays
+    /// them out): then their velocities and updates take one pass over Wᵀλ, not two.
+    paired: Vec<bool>,
     /// NNCG: impulses before the sweep and the search direction.
     previous: Vec<f64>,
     /// Per contact, the multiplier γ of the last friction block step: the next sweep starts
@@ -188,6 +191,16 @@ impl ConstraintSolver for PgsSolver {
         }
         self.workspace.coupling.clear();
         self.workspace.coupling.extend((0..problem.contacts.len()).map(|c| problem.friction_coupling(c)));
+        self.workspace.paired.clear();
+        let sp = &problem.sparsity;
+        if sp.run_start.len() == n + 1 {
+            let runs = |i: usize| sp.runs[sp.run_start[i]..sp.run_start[i + 1]].iter().map(|r| (r.0, r.2));
+            self.workspace.paired.extend(problem.contacts.iter().map(|c| {
+                let (_, t1, t2) = c.rows();
+                runs(t1).eq(runs(t2))
+            }));
+        }
+        let paired = &self.workspace.paired;
         let mut gamma = std::mem::take(&mut self.workspace.gamma);
         gamma.clear();
         gamma.resize(problem.contacts.len(), 0.0);
@@ -272,6 +285,44 @@ impl ConstraintSolver for PgsSolver {
                 axpy_blocks(problem, i, delta, &mut dv.borrow_mut());
             }
         };
+        // A contact's two friction rows: `w` and `moved` of both in one pass over their runs
+        // when these are the same (the same bits as one row after the other).
+        let pair_runs = |t1: usize, t2: usize| {
+            let sp = &problem.sparsity;
+            let (first, second) = (sp.run_start[t1], sp.run_start[t2]);
+            let count = sp.run_start[t1 + 1] - first;
+            sp.runs[first..first + count]
+                .iter()
+                .zip(&sp.runs[second..second + count])
+                .map(|(&(col, a, len), &(_, b, _))| (col, &sp.w_values[a..a + len], &sp.w_values[b..b + len]))
+        };
+        let w_pair = |contact: usize, t1: usize, t2: usize, lambda: &DVector<f64>| {
+            if !(sparse && paired.get(contact).copied().unwrap_or(false)) {
+                return (w(t1, lambda), w(t2, lambda));
+            }
+            let dv = dv.borrow();
+            let dv = dv.as_slice();
+            let (mut j1, mut j2) = (0.0, 0.0);
+            for (col, a, b) in pair_runs(t1, t2) {
+                let (d1, d2) = crate::math::dot2(a, b, &dv[col..col + a.len()]);
+                j1 += d1;
+                j2 += d2;
+            }
+            let r = &problem.regularization;
+            (j1 + r[t1] * lambda[t1] + problem.bias[t1], j2 + r[t2] * lambda[t2] + problem.bias[t2])
+        };
+        let moved_pair = |contact: usize, t1: usize, d1: f64, t2: usize, d2: f64| {
+            if sparse && d1 != 0.0 && d2 != 0.0 && paired.get(contact).copied().unwrap_or(false) {
+                let mut dv = dv.borrow_mut();
+                let dv = dv.as_mut_slice();
+                for (col, a, b) in pair_runs(t1, t2) {
+                    crate::math::axpy2(&mut dv[col..col + a.len()], d1, a, d2, b);
+                }
+            } else {
+                moved(t1, d1);
+                moved(t2, d2);
+            }
+        };
         let (mut previous, mut direction) =
             (std::mem::take(&mut self.workspace.previous), std::mem::take(&mut self.workspace.direction));
         if self.accelerate {
@@ -332,7 +383,7 @@ impl ConstraintSolver for PgsSolver {
                         {
                             // Both tangents at once, exactly on the friction disc or polygon
                             // (see `friction_block_step`): a fixed point then opposes slip.
-                            let (w1, w2) = (w(t1, lambda), w(t2, lambda));
+                            let (w1, w2) = w_pair(contact, t1, t2, lambda);
                             let g = [diag(t1), coupling[contact], diag(t2)];
                             let (bound, mu) = (lambda[nr].max(0.0), [block.mu, block.mu2]);
                             let step = match problem.friction {
@@ -352,8 +403,7 @@ impl ConstraintSolver for PgsSolver {
                             if let Some((p1, p2)) = step {
                                 lambda[t1] = p1;
                                 lambda[t2] = p2;
-                                moved(t1, p1 - o1);
-                                moved(t2, p2 - o2);
+                                moved_pair(contact, t1, p1 - o1, t2, p2 - o2);
                                 change = change.max(g[0] * (p1 - o1).abs()).max(g[2] * (p2 - o2).abs());
                                 continue;
                             }
