@@ -70,7 +70,9 @@ fn bench(c: &mut Criterion) {
     ];
     for (name, solvers) in chains {
         let mut w = box_stack(solvers);
+        w.set_phase_timing(true);
         let s = w.step().unwrap().clone();
+        w.set_phase_timing(false);
         eprintln!(
             "box_stack10 [{name}]: {} contacts, {} rows, solver {} ({} it), residual {:.1e}, phases ns {:?}",
             s.contacts, s.rows, s.solver, s.iterations, s.residual, s.phase_ns

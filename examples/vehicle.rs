@@ -22,6 +22,7 @@ fn buggy_world(mu: f64, slope_deg: f64) -> Result<(World, Vehicle), Box<dyn Erro
         ..WorldOptions::default()
     };
     options.sleep.enabled = false;
+    options.time_phases = true; // where the step's time goes, printed below
     let mut world = World::new(options);
     let tilt = Transform::from_xyz_rpy([0.0; 3], [0.0, -slope_deg.to_radians(), 0.0]);
     world.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, tilt, 0)?;

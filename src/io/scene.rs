@@ -676,6 +676,8 @@ pub fn run(
         rows: Vec::new(),
     };
     let mut summary = RunSummary { scene: scene.name.clone(), dt, ..RunSummary::default() };
+    // The summary reports where the time went.
+    scene.world.set_phase_timing(true);
     summary.energy_start = scene.world.total_energy();
     let mut iterations = 0u64;
     let start = Instant::now();

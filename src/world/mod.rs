@@ -121,7 +121,7 @@ pub struct StepStats {
     /// translation error (m) or joint-limit overshoot (rad or m), whichever is larger.
     pub constraint_violation: Option<f64>,
     /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
-    /// integration + sleeping.
+    /// integration + sleeping; zeros unless [`WorldOptions::time_phases`] is on.
     pub phase_ns: [u64; 6],
     /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step, else the
     /// name of [`WorldOptions::integrator`] (a smooth step, see [`smooth`]).
@@ -338,6 +338,12 @@ impl World {
         self.options.mass_matrix_reuse = tolerance;
     }
 
+    /// Turns the per-phase wall-clock timing of the step statistics on or off
+    /// ([`WorldOptions::time_phases`]).
+    pub fn set_phase_timing(&mut self, on: bool) {
+        self.options.time_phases = on;
+    }
+
     /// Replaces the sleeping parameters; disabling sleep wakes every multibody.
     pub fn set_sleep(&mut self, sleep: SleepOptions) {
         self.options.sleep = sleep;
@@ -545,12 +551,14 @@ impl World {
     /// One step of `options.dt`. See the module documentation for the order of the phases.
     pub fn step(&mut self) -> Result<&StepStats, StepError> {
         let h = self.options.dt;
-        let mut clock = Instant::now();
+        let mut clock = self.options.time_phases.then(Instant::now);
         let mut phase = [0u64; 6];
-        let mut lap = |k: usize, clock: &mut Instant| {
-            let now = Instant::now();
-            phase[k] = (now - *clock).as_nanos() as u64;
-            *clock = now;
+        let mut lap = |k: usize, clock: &mut Option<Instant>| {
+            if let Some(clock) = clock {
+                let now = Instant::now();
+                phase[k] = (now - *clock).as_nanos() as u64;
+                *clock = now;
+            }
         };
         // 1. Check the state.
         for (i, b) in self.bodies.iter().enumerate() {
@@ -1434,6 +1442,17 @@ mod tests {
             compared += 1;
         }
         assert!(compared >= 40, "{compared} of 50 resting steps kept W");
+    }
+
+    /// The step reads no clock unless asked to: zeros by default, the phases' times when on.
+    #[test]
+    fn a_step_times_its_phases_only_when_asked() {
+        let mut w = resting_box();
+        assert!(!w.options().time_phases);
+        assert_eq!(w.step().unwrap().phase_ns, [0; 6]);
+        w.set_phase_timing(true);
+        let phases = w.step().unwrap().phase_ns;
+        assert!(phases.iter().sum::<u64>() > 0, "{phases:?}");
     }
 
     /// Through the ragdoll's landing (subspace steps accepted, their Wᵀλ handed to PGS), the

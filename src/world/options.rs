@@ -117,6 +117,10 @@ pub struct WorldOptions {
     pub sleep: SleepOptions,
     /// Compute energy and momentum in the step statistics (costs one extra pass).
     pub diagnostics: bool,
+    /// Measure each phase's wall time into [`super::StepStats::phase_ns`] (zeros when off):
+    /// seven clock reads per step, about 1 % of a 20 µs ragdoll step, so off unless asked for
+    /// (`gelenk simulate` and `gelenk bench world` turn it on where they report phases).
+    pub time_phases: bool,
     /// Position-level projection of loop closures after each step.
     pub loop_projection: super::LoopProjection,
     /// Integrator of the steps without contacts, limits, motors or joint friction (see
@@ -153,6 +157,7 @@ impl Default for WorldOptions {
             limits: JointLimitParameters::default(),
             sleep: SleepOptions::default(),
             diagnostics: false,
+            time_phases: false,
             loop_projection: super::LoopProjection::default(),
             integrator: IntegratorKind::SemiImplicitEuler,
             mass_matrix_reuse: Some(1e-8),
