@@ -187,6 +187,9 @@ fn add_ball_limit_rows(
     speculation: Speculation,
     dropped: &mut Vec<DroppedLimit>,
 ) {
+    if limits.surely_beyond(&q.as_slice()[iq..iq + 4], p.margin) {
+        return; // No stop within the margin: no row, nothing dropped.
+    }
     let (distances, st) = limits.distances(&q.as_slice()[iq..iq + 4]);
     let omega_of = |v: &DVector<f64>| Vec3::new(v[iv], v[iv + 1], v[iv + 2]);
     let (omega, omega_free) = (omega_of(velocities.start), omega_of(velocities.free));
