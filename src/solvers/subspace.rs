@@ -196,6 +196,10 @@ pub(crate) struct SubspaceWorkspace {
     w_range: Vec<(usize, usize)>,
     groups: Vec<(usize, usize, usize)>,
     w_lanes: Vec<[f64; GROUP]>,
+    /// Per group, where its runs start in `group_runs` (one per group plus one), and the runs
+    /// (first column, end) outside which its rows of W are zero.
+    group_run_start: Vec<usize>,
+    group_runs: Vec<(usize, usize)>,
     /// A + R over those rows (row-major).
     gram: Vec<f64>,
     /// (A + R) times each unit's column, over `rows` (units × rows).
@@ -496,10 +500,11 @@ const GROUP: usize = 4;
 /// [`GROUP`] consecutive rows with the same column range (a contact's normal and tangent rows
 /// act on the same bodies), each group copied as lanes (`w_lanes[col]` holds its rows' entries
 /// in that column), and each block of the Gram between two groups one pass over the overlap of
-/// their ranges per row of the first group, each column adding that row's entry times the other
-/// group's four — up to sixteen products per column pair of lanes, where one dot product per
-/// pair of rows loaded them once per pair (a humanoid episode's subspace steps formed 666 short
-/// dots per step). Else (A formed, or a world too wide for the copy) entry by entry.
+/// their runs per row of the first group ([`gram_block`]), each column adding that row's entry
+/// times the other group's four — up to sixteen products per column pair of lanes, where one dot
+/// product per pair of rows loaded them once per pair (a humanoid episode's subspace steps
+/// formed 666 short dots per step). Else (A formed, or a world too wide for the copy) entry by
+/// entry.
 fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     let m = ws.rows.len();
     // Every entry is written below (a block of two groups that share no column as zeros): no
@@ -518,9 +523,14 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
             }
             ws.w_range.push(if lo < hi { (lo, hi) } else { (0, 0) });
         }
-        // Groups: (first row, rows, offset of its lanes in `w_lanes`).
+        // Groups: (first row, rows, offset of its lanes in `w_lanes`), and each group's runs:
+        // those of its rows when they all have the same (a contact's three rows do), else its
+        // whole range.
         ws.groups.clear();
         ws.w_lanes.clear();
+        ws.group_runs.clear();
+        ws.group_run_start.clear();
+        let runs_of = |r: usize| sp.row_spans(r).map(|(col, w)| (col, col + w.len()));
         let mut a = 0;
         while a < m {
             let range = ws.w_range[a];
@@ -538,48 +548,44 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
                     }
                 }
             }
+            ws.group_run_start.push(ws.group_runs.len());
+            let first = ws.rows[a];
+            if (1..count).all(|lane| runs_of(ws.rows[a + lane]).eq(runs_of(first))) {
+                let at = ws.group_runs.len();
+                ws.group_runs.extend(runs_of(first));
+                // Increasing within each multibody's block; a row on two multibodies lists its
+                // blocks in the contact's order.
+                ws.group_runs[at..].sort_unstable();
+            } else if range.0 < range.1 {
+                ws.group_runs.push(range);
+            }
             ws.groups.push((a, count, offset));
             a += count;
         }
+        ws.group_run_start.push(ws.group_runs.len());
         for (g, &(a, count_a, offset_a)) in ws.groups.iter().enumerate() {
-            let (lo_a, hi_a) = ws.w_range[a];
-            for &(b, count_b, offset_b) in &ws.groups[g..] {
-                let (lo_b, hi_b) = ws.w_range[b];
-                let (lo, hi) = (lo_a.max(lo_b), hi_a.min(hi_b));
-                let (ua, ub): (&[[f64; GROUP]], &[[f64; GROUP]]) = if lo < hi {
-                    (
-                        &ws.w_lanes[offset_a + lo - lo_a..offset_a + hi - lo_a],
-                        &ws.w_lanes[offset_b + lo - lo_b..offset_b + hi - lo_b],
-                    )
-                } else {
-                    (&[], &[])
-                };
-                // One pass over the overlap per two rows of group a (a contact's group has
-                // three): each pass keeps each row's four sums in one vector register, where the
-                // 4 × 4 block updated per column made the compiler shuffle x and y into 8-wide
-                // vectors (and three rows per pass cost more instructions than two).
+            let lo_a = ws.w_range[a].0;
+            let runs_a = &ws.group_runs[ws.group_run_start[g]..ws.group_run_start[g + 1]];
+            for (h, &(b, count_b, offset_b)) in ws.groups.iter().enumerate().skip(g) {
+                let lo_b = ws.w_range[b].0;
+                let runs_b = &ws.group_runs[ws.group_run_start[h]..ws.group_run_start[h + 1]];
                 let mut block = [[0.0; GROUP]; GROUP];
-                let mut i = 0;
-                while i + 1 < count_a {
-                    // Two rows of group a per pass: each y loaded once for both.
-                    let (first, second) = block.split_at_mut(i + 1);
-                    let (row0, row1) = (&mut first[i], &mut second[0]);
-                    for (x, y) in ua.iter().zip(ub) {
-                        let (x0, x1) = (x[i], x[i + 1]);
-                        for ((acc0, acc1), &yj) in row0.iter_mut().zip(row1.iter_mut()).zip(y) {
-                            *acc0 += x0 * yj;
-                            *acc1 += x1 * yj;
-                        }
+                // Only where both groups' runs overlap: elsewhere one side is zero (a left
+                // foot's rows and a right foot's share the root's columns, not the legs'), and
+                // the products skipped are exact zeros, so the sums are those over the whole
+                // range, to the bit.
+                let (mut i, mut j) = (0, 0);
+                while i < runs_a.len() && j < runs_b.len() {
+                    let (from, to) = (runs_a[i].0.max(runs_b[j].0), runs_a[i].1.min(runs_b[j].1));
+                    if from < to {
+                        let ua = &ws.w_lanes[offset_a + from - lo_a..offset_a + to - lo_a];
+                        let ub = &ws.w_lanes[offset_b + from - lo_b..offset_b + to - lo_b];
+                        gram_block(ua, ub, count_a, &mut block);
                     }
-                    i += 2;
-                }
-                if i < count_a {
-                    let row = &mut block[i];
-                    for (x, y) in ua.iter().zip(ub) {
-                        let xi = x[i];
-                        for (acc, &yj) in row.iter_mut().zip(y) {
-                            *acc += xi * yj;
-                        }
+                    if runs_a[i].1 <= runs_b[j].1 {
+                        i += 1;
+                    } else {
+                        j += 1;
                     }
                 }
                 for (i, row) in block.iter().enumerate().take(count_a) {
@@ -601,6 +607,37 @@ fn fill_gram(problem: &ConstraintProblem, ws: &mut SubspaceWorkspace) {
     }
     for (a, &r) in ws.rows.iter().enumerate() {
         ws.gram[a * m + a] += problem.regularization[r];
+    }
+}
+
+/// Adds to `block[i][j]` the products of lane i of `ua` (group a's rows, `count_a` of them)
+/// and lane j of `ub` over the columns both cover, column by column. One pass per two rows of
+/// group a (a contact's group has three): each pass keeps each row's four sums in one vector
+/// register, where the 4 × 4 block updated per column made the compiler shuffle x and y into
+/// 8-wide vectors (and three rows per pass cost more instructions than two).
+fn gram_block(ua: &[[f64; GROUP]], ub: &[[f64; GROUP]], count_a: usize, block: &mut [[f64; GROUP]; GROUP]) {
+    let mut i = 0;
+    while i + 1 < count_a {
+        // Two rows of group a per pass: each y loaded once for both.
+        let (first, second) = block.split_at_mut(i + 1);
+        let (row0, row1) = (&mut first[i], &mut second[0]);
+        for (x, y) in ua.iter().zip(ub) {
+            let (x0, x1) = (x[i], x[i + 1]);
+            for ((acc0, acc1), &yj) in row0.iter_mut().zip(row1.iter_mut()).zip(y) {
+                *acc0 += x0 * yj;
+                *acc1 += x1 * yj;
+            }
+        }
+        i += 2;
+    }
+    if i < count_a {
+        let row = &mut block[i];
+        for (x, y) in ua.iter().zip(ub) {
+            let xi = x[i];
+            for (acc, &yj) in row.iter_mut().zip(y) {
+                *acc += xi * yj;
+            }
+        }
     }
 }
 
