@@ -97,6 +97,37 @@ pub(crate) fn pyramid_offset_and_half(k: usize) -> (f64, f64) {
     pyramid_angle(1, k)
 }
 
+/// How far the scaled tangent impulse `s` lies outside the k-facet pyramid of normal impulse
+/// `normal` (its largest facet term, at least 0). For MuJoCo's four facets (normals
+/// (±½√2, ±½√2), offset ½√2) the largest term is the one whose signs match s: the same
+/// products and sums as the loop over the facets, without it.
+fn pyramid_violation(k: usize, s1: f64, s2: f64, normal: f64) -> f64 {
+    if k == 4 {
+        use std::f64::consts::FRAC_1_SQRT_2 as H;
+        return ((H * s1).abs() + (H * s2).abs() - H * normal.max(0.0)).max(0.0);
+    }
+    (0..k)
+        .map(|j| {
+            let (nx, ny) = pyramid_facet(k, j);
+            nx * s1 + ny * s2 - pyramid_offset_and_half(k).0 * normal.max(0.0)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The support of the k-facet pyramid's unit section in −m: its largest vertex term
+/// max_j −(m₁ c_j + m₂ s_j); for four facets (vertices (±1, 0), (0, ±1)) max(|m₁|, |m₂|).
+fn pyramid_support(k: usize, m1: f64, m2: f64) -> f64 {
+    if k == 4 {
+        return m1.abs().max(m2.abs());
+    }
+    (0..k)
+        .map(|j| {
+            let (c, s) = pyramid_vertex(k, j);
+            -(m1 * c + m2 * s)
+        })
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
 /// The contact whose normal is row `i`, if any: contact rows are laid out (n, t1, t2), so the
 /// next row is a friction row naming the contact (O(1), unlike a search over the contacts).
 pub(super) fn contact_of_normal(problem: &ConstraintProblem, i: usize) -> Option<usize> {
@@ -192,12 +223,7 @@ pub(crate) fn residuals_at_velocities(
             (if c.mu > 0.0 { 0.0 } else { l1.abs() }).max(if c.mu2 > 0.0 { 0.0 } else { l2.abs() });
         let violation = match problem.friction {
             FrictionModel::Cone => (norm2(s1, s2) - ln.max(0.0)).max(0.0),
-            FrictionModel::Pyramid { facets } => (0..facets)
-                .map(|j| {
-                    let (nx, ny) = pyramid_facet(facets, j);
-                    nx * s1 + ny * s2 - pyramid_offset_and_half(facets).0 * ln.max(0.0)
-                })
-                .fold(0.0, f64::max),
+            FrictionModel::Pyramid { facets } => pyramid_violation(facets, s1, s2, ln),
         };
         let violation = (violation * c.mu.max(c.mu2)).max(zero_mu_excess) * scale;
         r.friction_feasibility = r.friction_feasibility.max(violation);
@@ -206,12 +232,7 @@ pub(crate) fn residuals_at_velocities(
         let (m1, m2) = (c.mu * w1, c.mu2 * w2);
         let support = match problem.friction {
             FrictionModel::Cone => norm2(m1, m2),
-            FrictionModel::Pyramid { facets } => (0..facets)
-                .map(|j| {
-                    let (c, s) = pyramid_vertex(facets, j);
-                    -(m1 * c + m2 * s)
-                })
-                .fold(f64::NEG_INFINITY, f64::max),
+            FrictionModel::Pyramid { facets } => pyramid_support(facets, m1, m2),
         };
         // Dissipation gap: max over the friction set of −w_t·f, minus −w_t·λ_t, per unit bound.
         let best = ln.max(0.0) * support;
@@ -236,4 +257,35 @@ pub(crate) fn residuals_at_velocities(
         r.qp = Some(qp);
     }
     r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The four-facet shortcuts give the loops' values (as f64 equality: a zero's sign aside).
+    #[test]
+    fn the_four_facet_pyramid_terms_equal_the_loops_over_facets_and_vertices() {
+        let values = [0.0, -0.0, 1e-300, -2.5, 0.3, 7.0, -1e-9, 1.0 / 3.0];
+        for &s1 in &values {
+            for &s2 in &values {
+                for &normal in &values {
+                    let looped = (0..4)
+                        .map(|j| {
+                            let (nx, ny) = pyramid_facet(4, j);
+                            nx * s1 + ny * s2 - pyramid_offset_and_half(4).0 * normal.max(0.0)
+                        })
+                        .fold(0.0, f64::max);
+                    assert_eq!(pyramid_violation(4, s1, s2, normal), looped, "{s1} {s2} {normal}");
+                }
+                let looped = (0..4)
+                    .map(|j| {
+                        let (c, s) = pyramid_vertex(4, j);
+                        -(s1 * c + s2 * s)
+                    })
+                    .fold(f64::NEG_INFINITY, f64::max);
+                assert_eq!(pyramid_support(4, s1, s2), looped, "{s1} {s2}");
+            }
+        }
+    }
 }
