@@ -260,10 +260,11 @@ impl ConstraintSolver for PgsSolver {
                 self.workspace.dv.fill(0.0);
             }
         }
-        let dv = std::cell::RefCell::new(std::mem::take(&mut self.workspace.dv));
-        let w = |i: usize, lambda: &DVector<f64>| {
+        // Wᵀλ, passed to the closures below (a RefCell around it cost a borrow flag's update
+        // per row velocity and per update).
+        let mut dv = std::mem::take(&mut self.workspace.dv);
+        let w = |i: usize, lambda: &DVector<f64>, dv: &DVector<f64>| {
             if sparse {
-                let dv = dv.borrow();
                 let dv = dv.as_slice();
                 let mut jdv = 0.0;
                 for (col, w) in problem.sparsity.row_spans(i) {
@@ -276,13 +277,13 @@ impl ConstraintSolver for PgsSolver {
         };
         // All rows' velocities at λ from the kept s = Wᵀλ (sparse sweeps only): one pass over
         // W's spans, where forming them afresh (`ConstraintProblem::velocities`) takes two.
-        let velocities_at = |lambda: &DVector<f64>, out: &mut Vec<f64>| {
+        let velocities_at = |lambda: &DVector<f64>, dv: &DVector<f64>, out: &mut Vec<f64>| {
             out.clear();
-            out.extend((0..n).map(|i| w(i, lambda)));
+            out.extend((0..n).map(|i| w(i, lambda, dv)));
         };
-        let moved = |i: usize, delta: f64| {
+        let moved = |i: usize, delta: f64, dv: &mut DVector<f64>| {
             if sparse && delta != 0.0 {
-                axpy_blocks(problem, i, delta, &mut dv.borrow_mut());
+                axpy_blocks(problem, i, delta, dv);
             }
         };
         // A contact's two friction rows: `w` and `moved` of both in one pass over their runs
@@ -296,11 +297,10 @@ impl ConstraintSolver for PgsSolver {
                 .zip(&sp.runs[second..second + count])
                 .map(|(&(col, a, len), &(_, b, _))| (col, &sp.w_values[a..a + len], &sp.w_values[b..b + len]))
         };
-        let w_pair = |contact: usize, t1: usize, t2: usize, lambda: &DVector<f64>| {
+        let w_pair = |contact: usize, t1: usize, t2: usize, lambda: &DVector<f64>, dv: &DVector<f64>| {
             if !(sparse && paired.get(contact).copied().unwrap_or(false)) {
-                return (w(t1, lambda), w(t2, lambda));
+                return (w(t1, lambda, dv), w(t2, lambda, dv));
             }
-            let dv = dv.borrow();
             let dv = dv.as_slice();
             let (mut j1, mut j2) = (0.0, 0.0);
             for (col, a, b) in pair_runs(t1, t2) {
@@ -311,16 +311,15 @@ impl ConstraintSolver for PgsSolver {
             let r = &problem.regularization;
             (j1 + r[t1] * lambda[t1] + problem.bias[t1], j2 + r[t2] * lambda[t2] + problem.bias[t2])
         };
-        let moved_pair = |contact: usize, t1: usize, d1: f64, t2: usize, d2: f64| {
+        let moved_pair = |contact: usize, t1: usize, d1: f64, t2: usize, d2: f64, dv: &mut DVector<f64>| {
             if sparse && d1 != 0.0 && d2 != 0.0 && paired.get(contact).copied().unwrap_or(false) {
-                let mut dv = dv.borrow_mut();
                 let dv = dv.as_mut_slice();
                 for (col, a, b) in pair_runs(t1, t2) {
                     crate::math::axpy2(&mut dv[col..col + a.len()], d1, a, d2, b);
                 }
             } else {
-                moved(t1, d1);
-                moved(t2, d2);
+                moved(t1, d1, dv);
+                moved(t2, d2, dv);
             }
         };
         let (mut previous, mut direction) =
@@ -370,9 +369,9 @@ impl ConstraintSolver for PgsSolver {
                 }
                 let old = lambda[i];
                 let new = match problem.laws[i] {
-                    RowLaw::Unilateral => (old - self.omega * w(i, lambda) / d).max(0.0),
-                    RowLaw::Bilateral => old - self.omega * w(i, lambda) / d,
-                    RowLaw::Bounded { lo, hi } => (old - self.omega * w(i, lambda) / d).clamp(lo, hi),
+                    RowLaw::Unilateral => (old - self.omega * w(i, lambda, &dv) / d).max(0.0),
+                    RowLaw::Bilateral => old - self.omega * w(i, lambda, &dv) / d,
+                    RowLaw::Bounded { lo, hi } => (old - self.omega * w(i, lambda, &dv) / d).clamp(lo, hi),
                     RowLaw::Friction { contact } => {
                         let block = problem.contacts[contact];
                         let (nr, t1, t2) = block.rows();
@@ -383,7 +382,7 @@ impl ConstraintSolver for PgsSolver {
                         {
                             // Both tangents at once, exactly on the friction disc or polygon
                             // (see `friction_block_step`): a fixed point then opposes slip.
-                            let (w1, w2) = w_pair(contact, t1, t2, lambda);
+                            let (w1, w2) = w_pair(contact, t1, t2, lambda, &dv);
                             let g = [diag(t1), coupling[contact], diag(t2)];
                             let (bound, mu) = (lambda[nr].max(0.0), [block.mu, block.mu2]);
                             let step = match problem.friction {
@@ -403,19 +402,19 @@ impl ConstraintSolver for PgsSolver {
                             if let Some((p1, p2)) = step {
                                 lambda[t1] = p1;
                                 lambda[t2] = p2;
-                                moved_pair(contact, t1, p1 - o1, t2, p2 - o2);
+                                moved_pair(contact, t1, p1 - o1, t2, p2 - o2, &mut dv);
                                 change = change.max(g[0] * (p1 - o1).abs()).max(g[2] * (p2 - o2).abs());
                                 continue;
                             }
                         }
-                        lambda[t1] = o1 - self.omega * w(t1, lambda) / d;
-                        moved(t1, lambda[t1] - o1);
+                        lambda[t1] = o1 - self.omega * w(t1, lambda, &dv) / d;
+                        moved(t1, lambda[t1] - o1, &mut dv);
                         let d2 = diag(t2);
                         let before = lambda[t2];
                         if d2 > 0.0 {
-                            lambda[t2] = o2 - self.omega * w(t2, lambda) / d2;
+                            lambda[t2] = o2 - self.omega * w(t2, lambda, &dv) / d2;
                         }
-                        moved(t2, lambda[t2] - before);
+                        moved(t2, lambda[t2] - before, &mut dv);
                         let (u1, u2) = (lambda[t1], lambda[t2]);
                         let (p1, p2) = project_friction(
                             lambda[t1],
@@ -427,14 +426,14 @@ impl ConstraintSolver for PgsSolver {
                         );
                         lambda[t1] = p1;
                         lambda[t2] = p2;
-                        moved(t1, p1 - u1);
-                        moved(t2, p2 - u2);
+                        moved(t1, p1 - u1, &mut dv);
+                        moved(t2, p2 - u2, &mut dv);
                         change = change.max(d * (p1 - o1).abs()).max(d2 * (p2 - o2).abs());
                         continue;
                     }
                 };
                 lambda[i] = new;
-                moved(i, new - old);
+                moved(i, new - old, &mut dv);
                 change = change.max(d * (new - old).abs());
             }
             if change <= self.tolerance {
@@ -452,7 +451,7 @@ impl ConstraintSolver for PgsSolver {
                     if beta <= 1.0 {
                         let step = beta * direction[i];
                         lambda[i] += step;
-                        moved(i, step);
+                        moved(i, step, &mut dv);
                     }
                     direction[i] = lambda[i] - previous[i];
                 }
@@ -460,7 +459,7 @@ impl ConstraintSolver for PgsSolver {
             if self.subspace && (sweeps >= next_subspace || sweeps == self.iterations) {
                 next_subspace = if sweeps < first_subspace { first_subspace } else { 2 * sweeps };
                 let velocities = sparse.then(|| {
-                    velocities_at(lambda, &mut self.workspace.velocities);
+                    velocities_at(lambda, &dv, &mut self.workspace.velocities);
                     &self.workspace.velocities[..]
                 });
                 let ws = &mut self.workspace.subspace;
@@ -488,9 +487,8 @@ impl ConstraintSolver for PgsSolver {
                     lambda.copy_from(&ws.candidate);
                     if sparse && ws.sum_valid {
                         // Wᵀλ as the candidate's residuals formed it (the same sums, same order).
-                        dv.borrow_mut().as_mut_slice().copy_from_slice(&ws.candidate_sum);
+                        dv.as_mut_slice().copy_from_slice(&ws.candidate_sum);
                     } else if sparse {
-                        let mut dv = dv.borrow_mut();
                         dv.fill(0.0);
                         for i in 0..n {
                             if lambda[i] != 0.0 {
@@ -509,11 +507,11 @@ impl ConstraintSolver for PgsSolver {
             }
         }
         if certified.is_none() && sparse {
-            velocities_at(lambda, &mut self.workspace.velocities);
+            velocities_at(lambda, &dv, &mut self.workspace.velocities);
             certified = Some(residuals_at_velocities(problem, lambda, &self.workspace.velocities));
         }
         if sparse {
-            problem.keep_impulse_sum(lambda.as_slice(), dv.borrow().as_slice());
+            problem.keep_impulse_sum(lambda.as_slice(), dv.as_slice());
         }
         self.workspace.settled_by_subspace = settled_by_subspace;
         // Judge the last solve's exact solve by this one: settled in one sweep, or not.
@@ -529,7 +527,7 @@ impl ConstraintSolver for PgsSolver {
         self.workspace.previous = previous;
         self.workspace.gamma = gamma;
         self.workspace.direction = direction;
-        self.workspace.dv = dv.into_inner();
+        self.workspace.dv = dv;
         Ok(SolveInfo { iterations: sweeps, note: None, residuals: certified })
     }
 }
