@@ -3,7 +3,7 @@
 //! writing [`Contact`]s into a buffer that lives across steps.
 
 use super::broad_phase::SweepAndPrune;
-use super::convert::{from_pose, from_vector, to_pose};
+use super::convert::{from_pose, from_vector, to_pose, to_vector};
 use super::mesh::{MeshOptions, MissingMeshPolicy};
 use super::narrow_phase::{dispatch, pose_within, refresh_distances, PairCache};
 use super::reduce::{merge_to_patch, reduce, Candidate};
@@ -74,8 +74,9 @@ pub struct Collider {
     shape: SharedShape,
     /// Pose of parry's shape frame in the geometry frame (parry is y-up for some shapes).
     offset: Option<Transform>,
-    /// Pose of parry's shape frame in the body frame.
+    /// Pose of parry's shape frame in the body frame, as parry's pose and as a transform.
     local_pose: Pose,
+    local: Transform,
     world_pose: Pose,
     aabb: Aabb,
     /// Contacts of this collider stand for a patch: one point per pair (see
@@ -417,8 +418,13 @@ impl CollisionWorld {
             if !x_wb.is_finite() {
                 return Err(CollisionError::NonFinitePose { collider: collider.name.clone() });
             }
-            collider.world_pose = to_pose(x_wb) * collider.local_pose;
-            collider.aabb = collider.shape.compute_aabb(&collider.world_pose);
+            // One matrix product and one conversion to parry's quaternion, and the box of the
+            // common shapes from the rotation matrix: parry composes quaternions and turns the
+            // result back into a matrix or rotates points by it for each box.
+            let x_wc = x_wb * &collider.local;
+            collider.world_pose = to_pose(&x_wc);
+            collider.aabb = primitive_aabb(&*collider.shape.0, &x_wc)
+                .unwrap_or_else(|| collider.shape.compute_aabb(&collider.world_pose));
         }
         Ok(())
     }
@@ -536,6 +542,29 @@ impl CollisionWorld {
     }
 }
 
+/// The bounding box of a ball, capsule or cuboid at `pose` (parry's shape frame in the world),
+/// computed from the rotation matrix: ball centre ± r; a capsule's two end points' box grown by
+/// its radius; a cuboid's centre ± |R| h. `None` for other shapes (parry's own then).
+fn primitive_aabb(shape: &dyn parry3d_f64::shape::Shape, pose: &Transform) -> Option<Aabb> {
+    let (r, t) = (&pose.rotation, &pose.translation);
+    let boxed = |lo: Vec3, hi: Vec3| Aabb::new(to_vector(&lo), to_vector(&hi));
+    if let Some(ball) = shape.as_ball() {
+        let grow = Vec3::repeat(ball.radius);
+        return Some(boxed(t - grow, t + grow));
+    }
+    if let Some(capsule) = shape.as_capsule() {
+        let a = r * from_vector(capsule.segment.a) + t;
+        let b = r * from_vector(capsule.segment.b) + t;
+        let grow = Vec3::repeat(capsule.radius);
+        return Some(boxed(a.inf(&b) - grow, a.sup(&b) + grow));
+    }
+    if let Some(cuboid) = shape.as_cuboid() {
+        let half = r.abs() * from_vector(cuboid.half_extents);
+        return Some(boxed(t - half, t + half));
+    }
+    None
+}
+
 /// The box of static geometry; a half-space whose normal is along a world axis is bounded on
 /// that side (parry bounds no side of any half-space), so bodies far above the ground skip it.
 fn static_aabb(collider: &Collider) -> Aabb {
@@ -575,6 +604,7 @@ fn make_collider(
         shape: built.shape,
         offset: built.offset,
         local_pose,
+        local,
         world_pose: local_pose,
         aabb,
         patch: false,
@@ -615,4 +645,46 @@ fn may_collide(
         }
     }
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use parry3d_f64::shape::{Ball, Capsule, Cuboid, Cylinder};
+
+    /// The boxes from the rotation matrix are parry's, to rounding, for balls, capsules and
+    /// cuboids at turned and shifted poses; other shapes are left to parry.
+    #[test]
+    fn primitive_boxes_are_parrys_boxes() {
+        let shapes: [(&str, Box<dyn parry3d_f64::shape::Shape>); 3] = [
+            ("ball", Box::new(Ball::new(0.07))),
+            (
+                "capsule",
+                Box::new(Capsule::new(
+                    to_vector(&Vec3::new(0.0, -0.2, 0.0)),
+                    to_vector(&Vec3::new(0.01, 0.15, 0.02)),
+                    0.05,
+                )),
+            ),
+            ("cuboid", Box::new(Cuboid::new(to_vector(&Vec3::new(0.1, 0.2, 0.05))))),
+        ];
+        for k in 0..50 {
+            let angle = 0.37 * k as f64;
+            let pose = Transform::from_xyz_rpy(
+                [0.3 * angle.sin(), -1.0 + 0.1 * k as f64, 0.5],
+                [angle, 0.5 * angle, -angle],
+            );
+            for (name, shape) in &shapes {
+                let ours = primitive_aabb(shape.as_ref(), &pose).expect(name);
+                let theirs = shape.compute_aabb(&to_pose(&pose));
+                let gap = (ours.mins - theirs.mins)
+                    .abs()
+                    .max_element()
+                    .max((ours.maxs - theirs.maxs).abs().max_element());
+                assert!(gap < 1e-12, "{name} at pose {k}: boxes differ by {gap:e}");
+            }
+        }
+        let cylinder = Cylinder::new(0.1, 0.2);
+        assert!(primitive_aabb(&cylinder, &Transform::identity()).is_none());
+    }
 }
