@@ -20,7 +20,7 @@
 use gelenk::constraints::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin};
 use gelenk::io::problem::{
     lcp_facets, problem_from_json, problem_to_json, qp_of, read_meta, read_problem, run_solver,
-    write_problem, CorpusSolver, ProblemFileError, ProblemMeta, SolveStatus, CONE_FILE, LCP_FILE,
+    write_problem, CorpusSolver, ProblemFileError, ProblemMeta, SolveStatus, CONE_FILE, LCP_FILE, META_FILE,
     PROBLEM_FILE, QP_FILE,
 };
 use gelenk::solvers::{lcp_of, residuals};
@@ -549,6 +549,21 @@ fn solve_problem_command_reports_and_fails_cleanly() {
             }
         }
     }
+    // A status worse than meta.json records is a regression: a non-zero exit naming both.
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/problems/box-drop-cone-0045");
+    let copy = tmp.join("box-drop-cone-0045");
+    std::fs::create_dir_all(&copy).unwrap();
+    for file in [PROBLEM_FILE, META_FILE] {
+        std::fs::copy(source.join(file), copy.join(file)).unwrap();
+    }
+    let run = || gelenk(&["solve-problem", copy.to_str().unwrap(), "--solver", "clarabel"]);
+    assert_eq!(read_meta(&copy).unwrap().solutions["clarabel"].status, SolveStatus::Inaccurate);
+    assert!(run().status.success(), "as inaccurate as recorded");
+    let mut meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(copy.join(META_FILE)).unwrap()).unwrap();
+    meta["solutions"]["clarabel"]["status"] = "solved".into();
+    std::fs::write(copy.join(META_FILE), meta.to_string()).unwrap();
+    assert_one_line_error(&run(), "clarabel is inaccurate where meta.json records solved");
     let text = gelenk(&["solve-problem", corpus()[0].to_str().unwrap(), "--solver", "clarabel"]);
     assert!(text.status.success());
     let text = String::from_utf8_lossy(&text.stdout);

@@ -64,7 +64,9 @@ enum Command {
         only: Vec<usize>,
     },
     /// Solve one exported problem again (a problem.json or its directory); print status,
-    /// residuals and time, and compare with meta.json when it is there.
+    /// residuals and time, and compare with meta.json when it is there. Exits non-zero when the
+    /// solver fails, or when its status is worse than the one meta.json records (solved <
+    /// inaccurate < failed): a corpus problem is a regression test.
     SolveProblem {
         /// problem.json, or a directory holding one.
         file: PathBuf,
@@ -969,6 +971,18 @@ fn solve_problem(path: &Path, solver: &str, as_json: bool) -> Result<(), String>
             path.display(),
             kind.name(),
             record.message.as_deref().unwrap_or("no solution")
+        ));
+    }
+    // A corpus problem is a regression test: worse than meta.json records is a failure.
+    if let Some(expected) = expected.filter(|e| record.status > *e) {
+        let lower = |s: SolveStatus| format!("{s:?}").to_lowercase();
+        return Err(format!(
+            "{}: {} is {} where meta.json records {} (certified {:.3e} m/s, tolerance {tolerance:.0e})",
+            path.display(),
+            kind.name(),
+            lower(record.status),
+            lower(expected),
+            record.certified.unwrap_or(f64::NAN)
         ));
     }
     Ok(())

@@ -823,8 +823,9 @@ impl std::str::FromStr for CorpusSolver {
     }
 }
 
-/// Outcome of a solve.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+/// Outcome of a solve, ordered from best to worst (`Solved < Inaccurate < Failed`): a status
+/// greater than the one a problem's meta.json records is a regression.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SolveStatus {
     /// Impulses returned, certifying residual within the solver's tolerance.
