@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cargo build --release --quiet
-bin=target/release/gelenk
+bin="${CARGO_TARGET_DIR:-target}/release/gelenk"
 corpus=tests/problems
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -37,12 +37,44 @@ add box-drop-cone-0100 box-drop cone 100          # resting flat: 4 coplanar con
 add sphere-incline-cone-0000 sphere-incline cone 0  # launched without spin: friction spins it up
 add sphere-incline-cone-0030 sphere-incline cone 30 # rolling (sticking contact)
 add stack2-cone-0000 stack2 cone 0
-add stack2-cone-0001 stack2 cone 1                # resting stack: Lemke ends on a ray
+add stack2-cone-0001 stack2 cone 1                # resting stack: redundant contacts, A singular
 # Friction pyramid: QPs with facet inequalities.
 add box-drop-pyramid4-0015 box-drop pyramid:4 15
 add box-drop-pyramid4-0072 box-drop pyramid:4 72  # resting flat
 add box-drop-pyramid8-0066 box-drop pyramid:8 66
 add sphere-incline-pyramid4-0008 sphere-incline pyramid:4 8
-add stack2-pyramid4-0004 stack2 pyramid:4 4       # Lemke ends on a ray
+add stack2-pyramid4-0004 stack2 pyramid:4 4       # resting stack, pyramid
 add stack2-pyramid8-0008 stack2 pyramid:8 8
 add stack10-pyramid4-0000 stack10 pyramid:4 0     # the large one: 120 rows, 40 contacts
+
+# The table of tests/problems/README.md, from the new meta.json files.
+echo
+echo "| problem | scene | step | rows | contacts | nv | friction | formulation | clarabel | lemke | pgs |"
+echo "|---|---|---:|---:|---:|---:|---|---|---|---|---|"
+for dir in "$corpus"/*/; do
+    name=$(basename "$dir")
+    "$bin" solve-problem "$dir" --solver clarabel --json 2>/dev/null | python3 -c '
+import json, sys
+name = sys.argv[1]
+run = json.load(sys.stdin)
+problem = json.load(open(sys.argv[2] + "/problem.json"))
+meta = json.load(open(sys.argv[2] + "/meta.json"))
+scene, step = name.rsplit("-", 1)
+for kind in ("-cone", "-pyramid4", "-pyramid8"):
+    scene = scene.removesuffix(kind)
+contacts = problem["contacts"]
+if not contacts:
+    friction = "—"
+elif all(c["mu"] == 0 for c in contacts):
+    friction = "μ = 0"
+else:
+    f = problem["friction"]
+    friction = "cone" if f["model"] == "cone" else "pyramid:%d" % f["facets"]
+def status(kind):
+    s = meta["solutions"][kind]
+    return s["status"] if s.get("certified") is None else "%s %.0e" % (s["status"], s["certified"])
+print("| `%s` | %s | %d | %d | %d | %d | %s | %s | %s | %s | %s |" % (
+    name, scene, int(step), problem["rows"], len(contacts), problem["nv"], friction,
+    run["formulation"], status("clarabel"), status("lemke"), status("pgs")))
+' "$name" "$dir"
+done
