@@ -318,17 +318,21 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
             let j = model.joint(i);
             let range = |start: usize, n: usize| format!("{}..{}", start, start + n);
             println!(
-                "{:<24} {:<24} {:<9} {:<24} {:>10.4} {:>7} {:>7}",
+                "{:<24} {:<24} {:<9} {:<24} {:>10} {:>7} {:>7}",
                 model.body_name(i),
                 model.joint_name(i),
                 j.kind_name(),
                 model.body_name(model.parent(i)),
-                model.inertia(i).mass,
+                mass_text(model.inertia(i).mass, 4),
                 range(model.idx_q(i), j.nq()),
                 range(model.idx_v(i), j.nv()),
             );
         }
-        println!("total mass: {:.6} kg; {} named frames", model.total_mass(), model.frames().len());
+        println!(
+            "total mass: {} kg; {} named frames",
+            mass_text(model.total_mass(), 6),
+            model.frames().len()
+        );
         let mut geometry = collision_geometry(&model).peekable();
         if geometry.peek().is_none() {
             println!("collision geometry: none");
@@ -895,6 +899,16 @@ fn export_world_problems(
     }
     println!("wrote {written} problems of {steps} steps to {}", out.display());
     Ok(())
+}
+
+/// A mass (kg) with `decimals` places, in exponent form outside 1e-3 … 1e6 kg (a mass of 1e300 kg
+/// is 301 digits in fixed form).
+fn mass_text(mass: f64, decimals: usize) -> String {
+    if mass == 0.0 || (1e-3..1e6).contains(&mass.abs()) {
+        format!("{mass:.decimals$}")
+    } else {
+        format!("{mass:.decimals$e}")
+    }
 }
 
 fn solve_problem(path: &Path, solver: &str, as_json: bool) -> Result<(), String> {
