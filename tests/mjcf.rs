@@ -392,6 +392,67 @@ fn bad_documents_give_typed_errors() {
     assert!(matches!(&e, MjcfError::Io { file, .. } if file == "/nonexistent/scene.xml"), "{e}");
 }
 
+/// MuJoCo's schema decides which attributes exist: a misspelt one is an error (MuJoCo refuses it
+/// too), not a silently ignored setting; one whose effect gelenk cannot represent is refused
+/// unless it has MuJoCo's default value; names, looks and MuJoCo's solver settings load.
+#[test]
+fn misspelt_and_unmodelled_attributes_are_errors() {
+    let body = |joint: &str, geom: &str| {
+        scene(&format!(r#"<body name="b"><joint name="j" {joint}/><geom size="0.1" {geom}/></body>"#))
+    };
+    for (xml, attribute, element) in [
+        (body(r#"dampng="1""#, ""), "dampng", "<joint name=\"j\">"),
+        (body("", r#"frction="1""#), "frction", "<geom>"),
+        (
+            scene(r#"<body name="b" poss="0 0 1"><joint/><geom size="0.1"/></body>"#),
+            "poss",
+            "<body name=\"b\">",
+        ),
+        ("<mujoco><option timestpe=\"0.01\"/></mujoco>".to_string(), "timestpe", "<option>"),
+        ("<mujoco><option><flag gravty=\"disable\"/></option></mujoco>".to_string(), "gravty", "<flag>"),
+        ("<mujoco><compiler angel=\"radian\"/></mujoco>".to_string(), "angel", "<compiler>"),
+        // A default joint has no name (MuJoCo's schema): its attributes are checked too.
+        ("<mujoco><default><joint name=\"x\"/></default></mujoco>".to_string(), "name", "<joint name=\"x\">"),
+        ("<mujoco><default><geom densty=\"5\"/></default></mujoco>".to_string(), "densty", "<geom>"),
+    ] {
+        let e = err(&xml);
+        let MjcfError::InvalidAttribute { attribute: ref a, element: ref el, ref what, .. } = e else {
+            panic!("{xml}: {e:?}")
+        };
+        assert_eq!(a, attribute, "{xml}");
+        assert!(el.contains(element) && what.contains("MuJoCo has no such attribute"), "{e}");
+    }
+    for (xml, what) in [
+        (body("", r#"condim="4""#), "condim=\"4\""),
+        (body("", r#"margin="0.01""#), "margin"),
+        (body("", r#"priority="1""#), "priority"),
+        (body(r#"springdamper="0.1 1""#, ""), "springdamper"),
+        ("<mujoco><default><geom condim=\"1\"/></default></mujoco>".to_string(), "condim"),
+        ("<mujoco><option density=\"1.2\"/></mujoco>".to_string(), "density"),
+        ("<mujoco><option><flag filterparent=\"disable\"/></option></mujoco>".to_string(), "filterparent"),
+        ("<mujoco><option><flag limit=\"disable\"/></option></mujoco>".to_string(), "limit"),
+        ("<mujoco><option><flag override=\"enable\"/></option></mujoco>".to_string(), "override"),
+        ("<mujoco><compiler balanceinertia=\"true\"/></mujoco>".to_string(), "balanceinertia"),
+    ] {
+        let e = err(&xml);
+        assert!(matches!(e, MjcfError::Unsupported { .. }), "{xml}: {e:?}");
+        assert!(e.to_string().contains(what), "{e}");
+    }
+    // MuJoCo's defaults written out (numbers compared as numbers), looks and solver settings.
+    let ok = format!(
+        r#"<mujoco><compiler meshdir="m" balanceinertia="false"/>
+             <option integrator="implicitfast" iterations="50" solver="Newton" density="0.0">
+               <flag warmstart="disable" filterparent="enable"/></option>
+             <default><joint group="1" solreflimit="0.02 1"/><geom rgba="1 0 0 1" condim="3"/></default>
+             {}</mujoco>"#,
+        scene(r#"<body name="b" user="1"><joint name="j" margin="0.01" armature="0.1"/><geom size="0.1" margin="0.0" gap="0" solref="0.01 1" priority="0"/></body>"#)
+            .trim_start_matches("<mujoco>")
+            .trim_end_matches("</mujoco>")
+    );
+    let scene = mjcf::load_str(&ok).unwrap_or_else(|e| panic!("{e}\n{ok}"));
+    assert_eq!(scene.model.nv(), 1);
+}
+
 #[test]
 fn truncated_and_mutated_documents_never_panic() {
     let (case, _) = case_named("humanoid_fall");
