@@ -358,6 +358,49 @@ fn urdf_inverted_or_nan_limits_are_errors() {
     }
 }
 
+/// A misspelt element of a joint, link or inertial, or a misspelt attribute of an origin, axis,
+/// mass or inertia, is an error naming it and its line, not a silent default (the axis at x, a
+/// massless link); vendors' attributes on `<dynamics>` and `<limit>`, `<mimic>`,
+/// `<safety_controller>` and PyBullet's `<contact>` load.
+#[test]
+fn urdf_misspelt_elements_and_attributes_are_errors() {
+    let j = |inner: &str| {
+        format!(
+            r#"<joint name="j" type="revolute"><parent link="a"/><child link="b"/>{inner}<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#
+        )
+    };
+    for (body, needle) in [
+        (format!("{}{}{}", link("a"), link("b"), j(r#"<axiss xyz="0 1 0"/>"#)), "unknown element <axiss>"),
+        (format!("{}{}{}", link("a"), link("b"), j(r#"<axis xzy="0 1 0"/>"#)), "unknown attribute `xzy`"),
+        (
+            format!("{}{}{}", link("a"), link("b"), j(r#"<origin xyz="0 0 1" rpu="0 0 0"/>"#)),
+            "unknown attribute `rpu`",
+        ),
+        (
+            format!(r#"{}<link name="b"><inertail><mass value="1"/></inertail></link>{}"#, link("a"), j("")),
+            "unknown element <inertail>",
+        ),
+        (
+            format!(
+                r#"{}<link name="b"><inertial><mass valeu="1" value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>{}"#,
+                link("a"),
+                j("")
+            ),
+            "unknown attribute `valeu`",
+        ),
+    ] {
+        let msg = urdf_err(&robot(&body));
+        assert!(msg.contains(needle) && msg.contains("at line 1"), "{needle}: {msg}");
+    }
+    let extras = j(
+        r#"<axis xyz="0 1 0"/><dynamics damping="0.1" D="1" K="7000"/><mimic joint="k" multiplier="1"/><safety_controller k_velocity="1"/>"#,
+    );
+    let contact = r#"<link name="b"><contact><lateral_friction value="1"/></contact><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>"#;
+    let model =
+        load_str(&robot(&format!("{}{contact}{extras}", link("a"))), &UrdfOptions::default()).unwrap();
+    assert_eq!(model.nv(), 1);
+}
+
 #[test]
 fn urdf_valid_baseline_loads() {
     let text = robot(&format!("{}{}{}", link("a"), link("b"), joint("j", "revolute", "a", "b")));

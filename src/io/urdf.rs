@@ -6,7 +6,14 @@
 //! Joints are numbered depth-first in the order the file lists them (Pinocchio's order). Position
 //! limits of `continuous` joints are ignored; a `<limit>` of zero velocity or zero effort, and a
 //! zero-width position range, mean "not given". Collision and visual shapes are kept in the model
-//! ([`crate::model::GeometrySpec`]); no mesh file is opened.
+//! ([`crate::model::GeometrySpec`]); no mesh file is opened. `<mimic>` is not modelled: the
+//! joint moves on its own.
+//!
+//! A misspelt child of `<joint>`, `<link>` or `<inertial>`, or a misspelt attribute of `<origin>`,
+//! `<axis>`, `<parent>`, `<child>`, `<mass>` or `<inertia>`, is an error ([`UrdfError::Parse`],
+//! naming the element and its line), where urdf-rs alone would read the default (an `<axiss>`
+//! leaves the axis at x, an `<inertail>` leaves the link massless). Vendors' extra attributes on
+//! `<limit>`, `<dynamics>` and the like, and PyBullet's `<contact>` in a link, load.
 //!
 //! ## Extension: universal and hinge2 joints
 //! URDF has neither. gelenk reads an extra element, a direct child of `<robot>`, that standard
@@ -158,6 +165,7 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Model, Ur
             doc.root_element().tag_name().name()
         )));
     }
+    check_physics_elements(&doc, file)?;
     let extensions = read_extensions(&doc, file)?;
     let robot = urdf_rs::read_from_string(text).map_err(|e| parse_err(e.to_string()))?;
 
@@ -390,6 +398,86 @@ fn link_body(link: &urdf_rs::Link, parent: &str, joint: Joint, placement: Transf
         });
     }
     body
+}
+
+/// The children of `<joint>`, `<link>` and `<inertial>`, and the attributes of the elements
+/// whose attributes URDF closes (`origin`, `axis`, `parent`, `child`, `mass`, `inertia`), are
+/// URDF's (its specification; `<contact>` in a link is PyBullet's, read past). A parser that
+/// ignores the unknown turns a misspelling into a silent default (`<axiss>` or `<axis xzy=…>`
+/// leaves the axis at x, `<inertail>` leaves the link massless): here it is an error.
+/// `<limit>`, `<dynamics>` and the others keep vendors' extra attributes (Franka's panda.urdf
+/// writes `D`, `K`, `mu_coulomb` on `<dynamics>`).
+fn check_physics_elements(doc: &roxmltree::Document, file: &str) -> Result<(), UrdfError> {
+    // (tag, its attributes if URDF closes them)
+    type Known<'k> = &'k [(&'k str, Option<&'k [&'k str]>)];
+    const ORIGIN: (&str, Option<&[&str]>) = ("origin", Some(&["xyz", "rpy"]));
+    const JOINT: Known = &[
+        ORIGIN,
+        ("parent", Some(&["link"])),
+        ("child", Some(&["link"])),
+        ("axis", Some(&["xyz"])),
+        ("calibration", None),
+        ("dynamics", None),
+        ("limit", None),
+        ("mimic", None),
+        ("safety_controller", None),
+    ];
+    const INERTIAL: Known =
+        &[ORIGIN, ("mass", Some(&["value"])), ("inertia", Some(&["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]))];
+    const LINK: Known = &[("inertial", None), ("visual", None), ("collision", None), ("contact", None)];
+    let describe = |node: roxmltree::Node| {
+        let line = doc.text_pos_at(node.range().start).row;
+        match node.attribute("name") {
+            Some(n) => format!("<{} name=\"{n}\"> at line {line}", node.tag_name().name()),
+            None => format!("<{}> at line {line}", node.tag_name().name()),
+        }
+    };
+    let error = |node: roxmltree::Node, what: String| UrdfError::Parse {
+        file: file.to_string(),
+        message: format!("{}: {what}", describe(node)),
+    };
+    // The element's children are among `known` (tag, attributes), each with known attributes.
+    let check = |node: roxmltree::Node, known: Known| -> Result<(), UrdfError> {
+        for child in node.children().filter(roxmltree::Node::is_element) {
+            let tag = child.tag_name().name();
+            let Some((_, attributes)) = known.iter().find(|(t, _)| *t == tag) else {
+                let names: Vec<&str> = known.iter().map(|(t, _)| *t).collect();
+                return Err(error(
+                    node,
+                    format!(
+                        "unknown element <{tag}> (URDF's <{}> has {})",
+                        node.tag_name().name(),
+                        names.join(", ")
+                    ),
+                ));
+            };
+            let Some(attributes) = attributes else { continue };
+            if let Some(a) = child.attributes().find(|a| !attributes.contains(&a.name())) {
+                return Err(error(
+                    child,
+                    format!(
+                        "unknown attribute `{}` (URDF's <{tag}> has {})",
+                        a.name(),
+                        attributes.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    };
+    for node in doc.root_element().children().filter(roxmltree::Node::is_element) {
+        match node.tag_name().name() {
+            "joint" => check(node, JOINT)?,
+            "link" => {
+                check(node, LINK)?;
+                for inertial in node.children().filter(|c| c.has_tag_name("inertial")) {
+                    check(inertial, INERTIAL)?;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn read_extensions(doc: &roxmltree::Document, file: &str) -> Result<HashMap<String, Extension>, UrdfError> {
