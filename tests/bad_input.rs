@@ -395,7 +395,7 @@ fn urdf_misspelt_elements_and_attributes_are_errors() {
     let extras = j(
         r#"<axis xyz="0 1 0"/><dynamics damping="0.1" D="1" K="7000"/><mimic joint="k" multiplier="1"/><safety_controller k_velocity="1"/>"#,
     );
-    let contact = r#"<link name="b"><contact><lateral_friction value="1"/></contact><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>"#;
+    let contact = r#"<link name="b"><contact><lateral_friction value="1"/></contact><drake:x xmlns:drake="http://drake.mit.edu"/><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>"#;
     let model =
         load_str(&robot(&format!("{}{contact}{extras}", link("a"))), &UrdfOptions::default()).unwrap();
     assert_eq!(model.nv(), 1);

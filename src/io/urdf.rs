@@ -13,7 +13,8 @@
 //! `<axis>`, `<parent>`, `<child>`, `<mass>` or `<inertia>`, is an error ([`UrdfError::Parse`],
 //! naming the element and its line), where urdf-rs alone would read the default (an `<axiss>`
 //! leaves the axis at x, an `<inertail>` leaves the link massless). Vendors' extra attributes on
-//! `<limit>`, `<dynamics>` and the like, and PyBullet's `<contact>` in a link, load.
+//! `<limit>`, `<dynamics>` and the like, PyBullet's `<contact>` in a link and elements in an XML
+//! namespace (Drake's `drake:…`) load.
 //!
 //! ## Extension: universal and hinge2 joints
 //! URDF has neither. gelenk reads an extra element, a direct child of `<robot>`, that standard
@@ -438,7 +439,8 @@ fn check_physics_elements(doc: &roxmltree::Document, file: &str) -> Result<(), U
     };
     // The element's children are among `known` (tag, attributes), each with known attributes.
     let check = |node: roxmltree::Node, known: Known| -> Result<(), UrdfError> {
-        for child in node.children().filter(roxmltree::Node::is_element) {
+        // Elements in a namespace are some tool's extension (Drake's `drake:` ones): read past.
+        for child in node.children().filter(|c| c.is_element() && c.tag_name().namespace().is_none()) {
             let tag = child.tag_name().name();
             let Some((_, attributes)) = known.iter().find(|(t, _)| *t == tag) else {
                 let names: Vec<&str> = known.iter().map(|(t, _)| *t).collect();
