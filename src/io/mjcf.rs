@@ -761,11 +761,7 @@ impl<'a, 'i> Loader<'a, 'i> {
     // ----- errors -----------------------------------------------------------------------------
 
     fn describe(&self, node: Node) -> String {
-        let pos = self.doc.text_pos_at(node.range().start);
-        match node.attribute("name") {
-            Some(n) => format!("<{} name=\"{n}\"> at line {}", node.tag_name().name(), pos.row),
-            None => format!("<{}> at line {}", node.tag_name().name(), pos.row),
-        }
+        super::describe_element(self.doc, node)
     }
 
     /// Describes an element known by id (descriptions are made only for errors: finding the line

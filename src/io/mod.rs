@@ -4,3 +4,12 @@ pub mod mjcf;
 pub mod problem;
 pub mod scene;
 pub mod urdf;
+
+/// An XML element as errors name it: `<tag name="…"> at line N` (or `<tag> at line N`).
+pub(crate) fn describe_element(doc: &roxmltree::Document, node: roxmltree::Node) -> String {
+    let line = doc.text_pos_at(node.range().start).row;
+    match node.attribute("name") {
+        Some(n) => format!("<{} name=\"{n}\"> at line {line}", node.tag_name().name()),
+        None => format!("<{}> at line {line}", node.tag_name().name()),
+    }
+}

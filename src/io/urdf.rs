@@ -426,16 +426,9 @@ fn check_physics_elements(doc: &roxmltree::Document, file: &str) -> Result<(), U
     const INERTIAL: Known =
         &[ORIGIN, ("mass", Some(&["value"])), ("inertia", Some(&["ixx", "ixy", "ixz", "iyy", "iyz", "izz"]))];
     const LINK: Known = &[("inertial", None), ("visual", None), ("collision", None), ("contact", None)];
-    let describe = |node: roxmltree::Node| {
-        let line = doc.text_pos_at(node.range().start).row;
-        match node.attribute("name") {
-            Some(n) => format!("<{} name=\"{n}\"> at line {line}", node.tag_name().name()),
-            None => format!("<{}> at line {line}", node.tag_name().name()),
-        }
-    };
     let error = |node: roxmltree::Node, what: String| UrdfError::Parse {
         file: file.to_string(),
-        message: format!("{}: {what}", describe(node)),
+        message: format!("{}: {what}", super::describe_element(doc, node)),
     };
     // The element's children are among `known` (tag, attributes), each with known attributes.
     let check = |node: roxmltree::Node, known: Known| -> Result<(), UrdfError> {
