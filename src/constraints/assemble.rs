@@ -47,6 +47,16 @@ pub struct ProblemBuilder {
     pub friction: FrictionModel,
 }
 
+/// A position in a [`ProblemBuilder`]'s rows (the lengths of its buffers), to truncate to.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct RowsMark {
+    rows: usize,
+    segments: usize,
+    values: usize,
+    contacts: usize,
+    rates: usize,
+}
+
 /// How a row's Jacobian row is given: stored entries, or compactly (a contact's point rates,
 /// the coefficients on one joint's dofs), so that such a row costs the length of its bodies'
 /// paths to the root, not the width of their blocks.
@@ -210,6 +220,39 @@ impl ProblemBuilder {
     /// ranges to [`ProblemBuilder::push_point_contact`].
     pub(crate) fn rates_mut(&mut self) -> &mut Vec<(usize, Vec3)> {
         &mut self.rates
+    }
+
+    /// Where the rows end now: [`ProblemBuilder::truncate`] returns to it.
+    pub(crate) fn mark(&self) -> RowsMark {
+        RowsMark {
+            rows: self.len(),
+            segments: self.segment_block.len(),
+            values: self.values.len(),
+            contacts: self.contacts.len(),
+            rates: self.rates.len(),
+        }
+    }
+
+    /// Removes the rows after `mark` (from [`ProblemBuilder::mark`], with no row removed since),
+    /// keeping those before it as they are.
+    pub(crate) fn truncate(&mut self, mark: RowsMark) {
+        debug_assert!(mark.rows <= self.len() && mark.rates <= self.rates.len());
+        self.row_segments.truncate(mark.rows);
+        self.segment_block.truncate(mark.segments);
+        self.segment_start.truncate(mark.segments);
+        self.values.truncate(mark.values);
+        self.targets.truncate(mark.rows);
+        self.softness.truncate(mark.rows);
+        self.laws.truncate(mark.rows);
+        self.contacts.truncate(mark.contacts);
+        self.origins.truncate(mark.rows);
+        self.rates.truncate(mark.rates);
+        self.forms.truncate(mark.rows);
+    }
+
+    /// The contact blocks so far (normal row and friction coefficients of each contact).
+    pub(crate) fn contact_blocks(&self) -> &[ContactBlock] {
+        &self.contacts
     }
 
     /// Removes every row (keeps the buffers).
@@ -948,8 +991,16 @@ impl BuiltRows {
     /// Whether `builder`'s rows are the recorded ones: the same rows, laws, blocks and columns,
     /// and every Jacobian entry (a contact's direction and point rates, a joint row's
     /// coefficients, stored entries) within `tolerance` of the recorded one, relative to the
-    /// larger of 1 and its size (directions are unit, point rates m per rad or 1).
-    pub(crate) fn same_rows(&self, builder: &ProblemBuilder, tolerance: f64) -> bool {
+    /// larger of 1 and its size (directions are unit, point rates m per rad or 1). The rows
+    /// before `unchanged` (if given) are known to be the recorded ones bit for bit (kept from
+    /// the step W was built in): their entries are not compared.
+    pub(crate) fn same_rows(
+        &self,
+        builder: &ProblemBuilder,
+        tolerance: f64,
+        unchanged: Option<RowsMark>,
+    ) -> bool {
+        let from = unchanged.unwrap_or_default();
         // Branch-free (`&`, not `&&`) over the many point rates: one compare per entry.
         let close = |a: f64, b: f64| (a - b).abs() <= tolerance * b.abs().max(1.0);
         let close3 = |a: &Vec3, b: &Vec3| close(a.x, b.x) & close(a.y, b.y) & close(a.z, b.z);
@@ -975,13 +1026,16 @@ impl BuiltRows {
             && self.segment_block == builder.segment_block
             && self.rates.len() == builder.rates.len()
             && self.values.len() == builder.values.len()
-            && builder.forms.iter().zip(&self.forms).all(|(a, b)| same_form(a, b))
-            && builder
-                .rates
+            && self.forms.len() == builder.forms.len()
+            && builder.forms[from.rows..].iter().zip(&self.forms[from.rows..]).all(|(a, b)| same_form(a, b))
+            && builder.rates[from.rates..]
                 .iter()
-                .zip(&self.rates)
+                .zip(&self.rates[from.rates..])
                 .fold(true, |same, (a, b)| same & (a.0 == b.0) & close3(&a.1, &b.1))
-            && builder.values.iter().zip(&self.values).fold(true, |same, (a, b)| same & close(*a, *b))
+            && builder.values[from.values..]
+                .iter()
+                .zip(&self.values[from.values..])
+                .fold(true, |same, (a, b)| same & close(*a, *b))
     }
 }
 
@@ -1508,30 +1562,30 @@ mod tests {
         let first = last_dof_of(&model, last / 2);
         base.push_joint_row(RowLaw::Unilateral, 0.1, 0.0, RowOrigin::Other, first, &[1.0]);
         let mut recorded = BuiltRows::default();
-        assert!(!recorded.same_rows(&base, 1e-8), "nothing recorded yet");
+        assert!(!recorded.same_rows(&base, 1e-8, None), "nothing recorded yet");
         recorded.record(&base);
-        assert!(recorded.same_rows(&base, 1e-8));
+        assert!(recorded.same_rows(&base, 1e-8, None));
         // A point rate moved by half the tolerance is the same row; by twice it, not.
         let mut moved = base.clone();
         let scale = moved.rates[0].1.x.abs().max(1.0);
         moved.rates[0].1.x += 0.5e-8 * scale;
-        assert!(recorded.same_rows(&moved, 1e-8));
+        assert!(recorded.same_rows(&moved, 1e-8, None));
         moved.rates[0].1.x += 2e-8 * scale;
-        assert!(!recorded.same_rows(&moved, 1e-8));
+        assert!(!recorded.same_rows(&moved, 1e-8, None));
         // A turned direction, another joint coefficient, another law: not the same rows.
         let mut turned = base.clone();
         let RowForm::Rates(row) = &mut turned.forms[1] else { unreachable!() };
         row.direction.y += 1e-6;
-        assert!(!recorded.same_rows(&turned, 1e-8));
+        assert!(!recorded.same_rows(&turned, 1e-8, None));
         let mut scaled = base.clone();
         let RowForm::Joint { coefficients, .. } = &mut scaled.forms[3] else { unreachable!() };
         coefficients[0] = 1.0 + 1e-6;
-        assert!(!recorded.same_rows(&scaled, 1e-8));
+        assert!(!recorded.same_rows(&scaled, 1e-8, None));
         let mut other_law = base.clone();
         other_law.laws[3] = RowLaw::Bilateral;
-        assert!(!recorded.same_rows(&other_law, 1e-8));
+        assert!(!recorded.same_rows(&other_law, 1e-8, None));
         recorded.forget();
-        assert!(!recorded.same_rows(&base, 1e-8));
+        assert!(!recorded.same_rows(&base, 1e-8, None));
         // The kept problem with a new free velocity and target: the bias of a new build.
         let factor = TreeFactor::new(&model, &data);
         let v_free = DVector::from_fn(nv, |_, _| rng.random_range(-1.0..1.0));

@@ -18,8 +18,8 @@ mod contact;
 mod joints;
 mod loops;
 
-pub(crate) use assemble::BuiltRows;
 pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
+pub(crate) use assemble::{BuiltRows, RowsMark};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,

@@ -13,6 +13,7 @@
 //! motors or joint friction replace free motion, rows, solve and integration by that integrator
 //! (loop closures at the acceleration level): see [`smooth`].
 
+mod contact_rows;
 mod multibody;
 mod options;
 mod projection;
@@ -150,6 +151,8 @@ pub struct World {
     /// ([`Multibody::factor_identity`]): a step whose rows and factors are the same keeps W.
     built_rows: BuiltRows,
     built_factors: Vec<Option<u64>>,
+    /// The generation of the kept contact rows W was built from (see `contact_rows`).
+    built_contact_rows: Option<u64>,
     /// How many times a step built W from its rows ([`World::problem_builds`]).
     problem_builds: u64,
     lambda: DVector<f64>,
@@ -168,6 +171,10 @@ pub struct World {
     warm_matched: Vec<usize>,
     warm_missed: Vec<usize>,
     contacts: Vec<Contact>,
+    /// Per contact of this step: it gets rows (the speculation test, or forced).
+    contact_has_rows: Vec<bool>,
+    /// The contact rows the builder starts with, kept while they stay this step's rows.
+    kept_contact_rows: contact_rows::KeptContactRows,
     /// This step's contacts that the speculation test left without rows.
     speculation_dropped: Vec<usize>,
     /// Per contact of this step: given rows after a solve whose velocities close it
@@ -212,6 +219,7 @@ impl World {
             problem: ConstraintProblem::default(),
             built_rows: BuiltRows::default(),
             built_factors: Vec::new(),
+            built_contact_rows: None,
             problem_builds: 0,
             lambda: DVector::zeros(0),
             warm_keys: Vec::new(),
@@ -223,6 +231,8 @@ impl World {
             warm_missed: Vec::new(),
             row_keys: Vec::new(),
             contacts: Vec::new(),
+            contact_has_rows: Vec::new(),
+            kept_contact_rows: contact_rows::KeptContactRows::default(),
             speculation_dropped: Vec::new(),
             speculation_forced: Vec::new(),
             speculation_updated: Vec::new(),
@@ -269,6 +279,7 @@ impl World {
         self.names.push(name.to_string());
         self.builder = ProblemBuilder::with_blocks(self.nv_total, &self.blocks, self.options.friction)
             .map_err(StepError::Solver)?;
+        self.kept_contact_rows.invalidate();
         self.v_all = DVector::zeros(self.nv_total);
         self.v_free_all = DVector::zeros(self.nv_total);
         Ok(index)
@@ -284,6 +295,7 @@ impl World {
     ) -> Result<usize, StepError> {
         let c = self.collision.add_static(name, shape, pose, &MeshOptions::default())?;
         self.collision.set_material(c, material);
+        self.kept_contact_rows.invalidate();
         Ok(c)
     }
 
@@ -299,11 +311,13 @@ impl World {
             self.materials.resize(i + 1, self.options.contact);
         }
         self.materials[i] = parameters;
+        self.kept_contact_rows.invalidate();
     }
 
     /// Parameters used when materials `a` and `b` touch, overriding the combination rule.
     pub fn set_pair_parameters(&mut self, a: u32, b: u32, parameters: ContactParameters) {
         self.pair_parameters.insert((a.min(b), a.max(b)), parameters);
+        self.kept_contact_rows.invalidate();
     }
 
     /// Replaces the solver chain (the first solver whose answer is certified is used); the
@@ -318,6 +332,7 @@ impl World {
     pub fn set_friction(&mut self, friction: FrictionModel) -> Result<(), StepError> {
         self.builder =
             ProblemBuilder::with_blocks(self.nv_total, &self.blocks, friction).map_err(StepError::Solver)?;
+        self.kept_contact_rows.invalidate();
         self.options.friction = friction;
         self.chain = self.options.chain();
         Ok(())
@@ -404,6 +419,8 @@ impl World {
 
     /// The collision world, mutably (filters, materials, self-collision).
     pub fn collision_mut(&mut self) -> &mut CollisionWorld {
+        // Colliders' materials may change: the contact rows are formed anew.
+        self.kept_contact_rows.invalidate();
         &mut self.collision
     }
 
@@ -626,14 +643,16 @@ impl World {
             self.v_free_all.rows_mut(col, nv).copy_from(&b.v_free);
         }
         lap(2, &mut clock);
-        // 5. Constraint rows.
-        self.builder.clear();
+        // 5. Constraint rows (`add_rows` clears the builder, or keeps its contact rows).
         self.speculation_forced.clear();
         self.speculation_forced.resize(self.contacts.len(), false);
         self.speculation_dropped.clear();
         self.limits_dropped.clear();
         if has_rows && !smooth {
             self.add_rows(h, false);
+        } else {
+            self.builder.clear();
+            self.kept_contact_rows.invalidate();
         }
         let mut rows = self.builder.len();
         // 6. Solve.
@@ -667,7 +686,6 @@ impl World {
                 b.v_solved.copy_from(&self.v_free_all.rows(b.col, nv));
                 self.v_free_all.rows_mut(b.col, nv).copy_from(&b.v_free);
             }
-            self.builder.clear();
             self.add_rows(h, true);
             rows = self.builder.len();
             self.build_problem();
@@ -899,7 +917,13 @@ impl World {
         if let Some(tolerance) = self.options.mass_matrix_reuse {
             let same_factors = self.built_factors.len() == self.bodies.len()
                 && self.bodies.iter().zip(&self.built_factors).all(|(b, f)| b.factor_identity() == *f);
-            if same_factors && self.built_rows.same_rows(&self.builder, tolerance) {
+            // Contact rows kept since W was built are its rows bit for bit.
+            let unchanged = self
+                .kept_contact_rows
+                .current()
+                .filter(|(generation, _)| Some(*generation) == self.built_contact_rows)
+                .map(|(_, mark)| mark);
+            if same_factors && self.built_rows.same_rows(&self.builder, tolerance, unchanged) {
                 self.builder.refresh_bias(&self.v_free_all, &mut self.problem);
                 return;
             }
@@ -909,6 +933,7 @@ impl World {
         self.problem_builds += 1;
         if self.options.mass_matrix_reuse.is_some() {
             self.built_rows.record(&self.builder);
+            self.built_contact_rows = self.kept_contact_rows.current().map(|(generation, _)| generation);
             self.built_factors.clear();
             self.built_factors.extend(self.bodies.iter().map(Multibody::factor_identity));
         } else {
@@ -922,6 +947,12 @@ impl World {
     /// build keep it (see [`WorldOptions::mass_matrix_reuse`]).
     pub fn problem_builds(&self) -> u64 {
         self.problem_builds
+    }
+
+    /// How many steps kept their contact rows from an earlier step (a body at rest: see
+    /// [`WorldOptions::mass_matrix_reuse`]) instead of forming them from the contacts.
+    pub fn contact_row_reuses(&self) -> u64 {
+        self.kept_contact_rows.reuses
     }
 
     /// `v_free_all += M⁻¹ Jᵀ λ`: the velocity after the solved impulses.
@@ -996,37 +1027,68 @@ impl World {
         let forced = &self.speculation_forced;
         let mut dropped = std::mem::take(&mut self.speculation_dropped);
         dropped.clear();
-        add_contact_rows_with(
-            &mut builder,
-            |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
-            &contacts,
-            0,
-            v,
-            h,
-            |c| self.parameters_of(c),
-            |i, c| {
-                if forced[i] || speculation.keeps(c.distance, 0.0, h) {
-                    return true;
+        // Which contacts get rows, decided before any row is formed.
+        let mut has_rows = std::mem::take(&mut self.contact_has_rows);
+        has_rows.clear();
+        has_rows.extend(contacts.iter().enumerate().map(|(i, c)| {
+            if forced[i] || speculation.keeps(c.distance, 0.0, h) {
+                return true;
+            }
+            // The closing speed of the contact's two points under v and under v_free.
+            let point_velocities = |side: Attachment, p: &Vec3| match side {
+                Attachment::Body { multibody, body } => {
+                    let velocities = &bodies[multibody].world_velocities;
+                    let (at_v, at_free) = (&velocities.start[body], &velocities.free[body]);
+                    (at_v.linear + at_v.angular.cross(p), at_free.linear + at_free.angular.cross(p))
                 }
-                // The closing speed of the contact's two points under v and under v_free.
-                let point_velocities = |side: Attachment, p: &Vec3| match side {
-                    Attachment::Body { multibody, body } => {
-                        let velocities = &bodies[multibody].world_velocities;
-                        let (at_v, at_free) = (&velocities.start[body], &velocities.free[body]);
-                        (at_v.linear + at_v.angular.cross(p), at_free.linear + at_free.angular.cross(p))
-                    }
-                    Attachment::World => (Vec3::zeros(), Vec3::zeros()),
-                };
-                let (a, a_free) = point_velocities(c.body_a, &c.point_a);
-                let (b, b_free) = point_velocities(c.body_b, &c.point_b);
-                let keep = speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h);
-                if !keep {
-                    dropped.push(i);
-                }
-                keep
-            },
-        );
+                Attachment::World => (Vec3::zeros(), Vec3::zeros()),
+            };
+            let (a, a_free) = point_velocities(c.body_a, &c.point_a);
+            let (b, b_free) = point_velocities(c.body_b, &c.point_b);
+            let keep = speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h);
+            if !keep {
+                dropped.push(i);
+            }
+            keep
+        }));
+        // The builder still starts with last step's contact rows: kept if they are this step's
+        // rows (see `contact_rows`), with new targets; else formed anew.
+        let keep_rows =
+            self.options.mass_matrix_reuse.filter(|_| !after_solve).is_some_and(|tolerance| {
+                self.kept_contact_rows.hold(tolerance, h, bodies, &contacts, &has_rows)
+            });
+        if keep_rows {
+            builder.truncate(self.kept_contact_rows.mark());
+            let with_rows = contacts.iter().zip(&has_rows).filter(|(_, rows)| **rows).map(|(c, _)| c);
+            for (k, c) in with_rows.enumerate() {
+                let normal = builder.contact_blocks()[k].normal;
+                let approach = builder.row_dot(normal, v.as_slice());
+                builder.set_target(
+                    normal,
+                    self.parameters_of(c).target_normal_velocity(c.distance, approach, h),
+                );
+            }
+            self.kept_contact_rows.reuses += 1;
+        } else {
+            builder.clear();
+            add_contact_rows_with(
+                &mut builder,
+                |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
+                &contacts,
+                0,
+                v,
+                h,
+                |c| self.parameters_of(c),
+                |i, _| has_rows[i],
+            );
+            if self.options.mass_matrix_reuse.is_some() {
+                self.kept_contact_rows.record(h, bodies, &contacts, &has_rows, builder.mark());
+            } else {
+                self.kept_contact_rows.invalidate();
+            }
+        }
         self.contacts = contacts;
+        self.contact_has_rows = has_rows;
         self.speculation_dropped = dropped;
         let mut limits_dropped = std::mem::take(&mut self.limits_dropped);
         limits_dropped.clear();
@@ -1442,6 +1504,52 @@ mod tests {
             compared += 1;
         }
         assert!(compared >= 40, "{compared} of 50 resting steps kept W");
+    }
+
+    /// A resting ragdoll keeps its contact rows on most steps, and the kept rows are the rows
+    /// formed anew from the step's contacts: Jacobian entries to 1e-7 (m/s per unit rate; the
+    /// tolerance is 1e-8 in every coordinate and contact point), targets to 1e-9 m/s, the same
+    /// laws and contact blocks. Moving the ragdoll by a micrometre forms them anew.
+    #[test]
+    fn kept_contact_rows_are_the_rows_formed_anew() {
+        let mut s = resting_ragdoll();
+        let w = &mut s.world;
+        let mut compared = 0;
+        for _ in 0..50 {
+            let reuses = w.contact_row_reuses();
+            w.step().unwrap();
+            if w.contact_row_reuses() == reuses {
+                continue;
+            }
+            let mut fresh = ProblemBuilder::with_blocks(w.nv_total, &w.blocks, w.options.friction).unwrap();
+            let bodies = &w.bodies;
+            let (has_rows, h) = (&w.contact_has_rows, w.options.dt);
+            add_contact_rows_with(
+                &mut fresh,
+                |m| (&bodies[m].model, &bodies[m].data, bodies[m].col),
+                &w.contacts,
+                0,
+                &w.v_all,
+                h,
+                |c| w.parameters_of(c),
+                |i, _| has_rows[i],
+            );
+            assert!(fresh.contact_count() >= 5, "{} contacts with rows", fresh.contact_count());
+            assert_eq!(fresh.contact_blocks(), &w.builder.contact_blocks()[..fresh.contact_count()]);
+            for i in 0..fresh.len() {
+                let gap = (DVector::from_vec(fresh.row(i)) - DVector::from_vec(w.builder.row(i))).amax();
+                assert!(gap <= 1e-7, "row {i}: kept against new {gap:e}");
+                let target_gap = (fresh.target(i) - w.builder.target(i)).abs();
+                assert!(target_gap <= 1e-9, "row {i}: target {target_gap:e} m/s");
+            }
+            compared += 1;
+        }
+        assert!(compared >= 40, "{compared} of 50 resting steps kept the contact rows");
+        // A micrometre is far beyond the tolerance: the next step forms its rows anew.
+        w.multibody_mut(0).state.q[0] += 1e-6;
+        let reuses = w.contact_row_reuses();
+        w.step().unwrap();
+        assert_eq!(w.contact_row_reuses(), reuses);
     }
 
     /// The step reads no clock unless asked to: zeros by default, the phases' times when on.

@@ -138,6 +138,11 @@ pub struct WorldOptions {
     /// built on while the step's rows are the same rows with every Jacobian entry within this
     /// tolerance (relative to the larger of 1 and the entry) of those W was built from: only the
     /// bias J v_free − u* is formed anew ([`super::World::problem_builds`] counts the builds).
+    /// The contact rows themselves (point rates along the normal and tangents) are kept from an
+    /// earlier step while every coordinate (rad or m, the root's pose included) and every contact
+    /// point and normal component (m) is within this tolerance of where they were formed and the
+    /// same contacts get rows; only their targets are new ([`super::World::contact_row_reuses`]
+    /// counts those steps).
     pub mass_matrix_reuse: Option<f64>,
 }
 
