@@ -705,6 +705,11 @@ impl ProblemBuilder {
             }
             return stored + compact;
         }
+        if let RowForm::Joint { first, coefficients, len } = self.forms[i] {
+            // A joint row (every resting step's bias, for each limit and friction row).
+            return stored
+                + coefficients[..len].iter().zip(&v[first..first + len]).map(|(x, v)| x * v).sum::<f64>();
+        }
         stored + self.compact_entries(i).map(|(c, x)| x * v[c]).sum::<f64>()
     }
 
