@@ -697,7 +697,7 @@ fn bench_world(
     let (mut medians, mut means, mut phases) = (Vec::new(), Vec::new(), Vec::new());
     let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
         (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
-    let mut builds = 0;
+    let (mut builds, mut kept_rows) = (0, 0);
     let load = || -> Result<BenchTarget, String> {
         let mut target = BenchTarget::load(path)?;
         let world = target.world();
@@ -729,6 +729,7 @@ fn bench_world(
         (rows, fallbacks, iterations) = (0, 0, 0);
         solver_usage.clear();
         let builds_before = target.world().problem_builds();
+        let kept_before = target.world().contact_row_reuses();
         for _ in 0..steps {
             let start = Instant::now();
             let stats = target.step(controls)?;
@@ -744,6 +745,7 @@ fn bench_world(
             }
         }
         builds = target.world().problem_builds() - builds_before;
+        kept_rows = target.world().contact_row_reuses() - kept_before;
         times.sort_by(f64::total_cmp);
         medians.push(times.get(times.len() / 2).copied().unwrap_or(0.0));
         phases.push(phase.map(|ns| ns as f64 * 1e-3 / steps.max(1) as f64));
@@ -764,7 +766,8 @@ fn bench_world(
                    "median_us_per_step": median_us, "mean_us_per_step": mean_us,
                    "phase_mean_us": phase_json, "max_rows": rows, "fallbacks": fallbacks,
                    "mean_iterations": iterations as f64 / steps.max(1) as f64,
-                   "solver_usage": solver_usage, "problem_builds": builds})
+                   "solver_usage": solver_usage, "problem_builds": builds,
+                   "contact_row_reuses": kept_rows})
         );
     } else {
         println!(
@@ -774,7 +777,7 @@ fn bench_world(
         let parts: Vec<String> = PHASES.iter().zip(&phase).map(|(n, us)| format!("{n} {us:.1}")).collect();
         println!("mean µs per phase: {}", parts.join(", "));
         println!(
-            "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step, W built {builds} times (World::problem_builds) in the last episode",
+            "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step, W built {builds} times (World::problem_builds) and contact rows kept on {kept_rows} steps (World::contact_row_reuses) in the last episode",
             iterations as f64 / steps.max(1) as f64
         );
     }
