@@ -996,13 +996,7 @@ impl World {
         let mut found = false;
         for &k in &self.speculation_dropped {
             let c = &self.contacts[k];
-            let velocity = |side: Attachment, p: &Vec3| match side {
-                Attachment::Body { multibody, body } => {
-                    let at = &self.bodies[multibody].world_velocities.solved[body];
-                    at.linear + at.angular.cross(p)
-                }
-                Attachment::World => Vec3::zeros(),
-            };
+            let velocity = |side, p: &Vec3| point_velocity(&self.bodies, side, p, |w| &w.solved);
             let separating = c.normal.dot(&(velocity(c.body_a, &c.point_a) - velocity(c.body_b, &c.point_b)));
             if self.options.speculation.keeps(c.distance, (-separating).max(0.0), h) {
                 self.speculation_forced[k] = true;
@@ -1035,17 +1029,12 @@ impl World {
                 return true;
             }
             // The closing speed of the contact's two points under v and under v_free.
-            let point_velocities = |side: Attachment, p: &Vec3| match side {
-                Attachment::Body { multibody, body } => {
-                    let velocities = &bodies[multibody].world_velocities;
-                    let (at_v, at_free) = (&velocities.start[body], &velocities.free[body]);
-                    (at_v.linear + at_v.angular.cross(p), at_free.linear + at_free.angular.cross(p))
-                }
-                Attachment::World => (Vec3::zeros(), Vec3::zeros()),
+            let relative = |which: fn(&multibody::WorldVelocities) -> &[crate::math::Motion]| {
+                point_velocity(bodies, c.body_a, &c.point_a, which)
+                    - point_velocity(bodies, c.body_b, &c.point_b, which)
             };
-            let (a, a_free) = point_velocities(c.body_a, &c.point_a);
-            let (b, b_free) = point_velocities(c.body_b, &c.point_b);
-            let keep = speculation.keeps(c.distance, (a - b).norm().max((a_free - b_free).norm()), h);
+            let speed = relative(|w| &w.start).norm().max(relative(|w| &w.free).norm());
+            let keep = speculation.keeps(c.distance, speed, h);
             if !keep {
                 dropped.push(i);
             }
@@ -1064,13 +1053,7 @@ impl World {
             // formed them (O(1) per contact; the same J v as the normal row's, up to the kept
             // rows' tolerance), else from the row.
             let world_velocities = speculation.speed_factor.is_finite();
-            let velocity = |side: Attachment, p: &Vec3| match side {
-                Attachment::Body { multibody, body } => {
-                    let at = &bodies[multibody].world_velocities.start[body];
-                    at.linear + at.angular.cross(p)
-                }
-                Attachment::World => Vec3::zeros(),
-            };
+            let velocity = |side, p: &Vec3| point_velocity(bodies, side, p, |w| &w.start);
             for (k, c) in with_rows.enumerate() {
                 let normal = builder.contact_blocks()[k].normal;
                 let approach = if world_velocities {
@@ -1296,6 +1279,24 @@ impl World {
             }
             i += count;
         }
+    }
+}
+
+/// The world velocity (m/s) of the point `p` (world) moving with `side`, from the spatial
+/// velocities per body that `which` picks of its multibody's [`multibody::WorldVelocities`]
+/// (under the start, free or solved velocity); zero for static geometry.
+fn point_velocity(
+    bodies: &[Multibody],
+    side: Attachment,
+    p: &Vec3,
+    which: impl Fn(&multibody::WorldVelocities) -> &[crate::math::Motion],
+) -> Vec3 {
+    match side {
+        Attachment::Body { multibody, body } => {
+            let at = &which(&bodies[multibody].world_velocities)[body];
+            at.linear + at.angular.cross(p)
+        }
+        Attachment::World => Vec3::zeros(),
     }
 }
 
