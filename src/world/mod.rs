@@ -159,6 +159,11 @@ pub struct World {
     /// Last step's row keys and impulses, in row order ([`World::warm_start`]).
     warm_keys: Vec<u64>,
     warm_values: Vec<f64>,
+    /// The origins of last solve's rows and the generation of its kept contact rows (see
+    /// `contact_rows`), and whether this step's rows are those rows ([`World::warm_start`]).
+    warm_origins: Vec<RowOrigin>,
+    warm_generation: Option<u64>,
+    warm_same_rows: bool,
     /// Key → position in `warm_keys`, built only in steps whose rows came in another order.
     warm_index: HashMap<u64, usize, FastHasher>,
     /// This step's row keys (become `warm_keys` once solved).
@@ -223,6 +228,9 @@ impl World {
             problem_builds: 0,
             lambda: DVector::zeros(0),
             warm_keys: Vec::new(),
+            warm_origins: Vec::new(),
+            warm_generation: None,
+            warm_same_rows: false,
             warm_values: Vec::new(),
             warm_index: HashMap::default(),
             warm_contacts: Vec::new(),
@@ -1171,9 +1179,22 @@ impl World {
     /// to it (within [`WARM_MATCH_DISTANCE`]) that no other contact took: parry's feature ids
     /// of one resting contact change from step to step (a capsule's segment against a box edge
     /// reports its features, then none), and in a pile of 20 ragdolls 5 % of the contacts
-    /// with rows lost their impulses every step that way.
+    /// with rows lost their impulses every step that way. When the rows are the last solve's
+    /// (its kept contact rows, the same other rows in the same order: a body at rest), λ holds
+    /// their impulses already and no key is formed.
     fn warm_start(&mut self) {
         let n = self.problem.rows();
+        // The rows of the last solve, in its order (its kept contact rows, the same other rows):
+        // λ holds their impulses already.
+        let generation = self.kept_contact_rows.current().map(|(generation, _)| generation);
+        self.warm_same_rows = generation.is_some()
+            && generation == self.warm_generation
+            && self.lambda.len() == n
+            && self.warm_values.len() == n
+            && self.problem.origins == self.warm_origins;
+        if self.warm_same_rows {
+            return;
+        }
         if self.lambda.len() != n {
             self.lambda = DVector::zeros(n);
         }
@@ -1260,9 +1281,16 @@ impl World {
 
     /// Keeps this step's impulses with their row keys for the next step's warm start.
     fn remember_impulses(&mut self) {
-        std::mem::swap(&mut self.warm_keys, &mut self.row_keys);
         self.warm_values.clear();
         self.warm_values.extend_from_slice(self.lambda.as_slice());
+        self.warm_generation = self.kept_contact_rows.current().map(|(generation, _)| generation);
+        if self.warm_same_rows {
+            // Keys and contacts describe these rows already (a contact's point has moved by less
+            // than the kept rows' tolerance).
+            return;
+        }
+        std::mem::swap(&mut self.warm_keys, &mut self.row_keys);
+        self.warm_origins.clone_from(&self.problem.origins);
         self.warm_contacts.clear();
         let (n, origins) = (self.problem.rows(), &self.problem.origins);
         let mut i = 0;
@@ -1621,8 +1649,18 @@ mod tests {
         let before = w.lambda.clone();
         assert_eq!(w.contacts.len(), 4);
         assert!(before.iter().filter(|x| **x > 0.0).count() >= 4, "{before}");
+        // The resting box's rows are the last solve's (kept contact rows): λ stands as it is,
+        // and matching the rows by their keys gives the same λ.
+        w.warm_start();
+        assert!(w.warm_same_rows);
+        assert_eq!(w.lambda, before);
+        w.kept_contact_rows.invalidate();
+        w.warm_start();
+        assert!(!w.warm_same_rows);
+        assert_eq!(w.lambda, before);
         // The same contacts with other feature ids (parry's ids of a resting contact flip), and
-        // the last one moved by 1 cm: its impulses are not the old contact's.
+        // the last one moved by 1 cm (whose rows a step would form anew): its impulses are not
+        // the old contact's.
         for c in &mut w.contacts {
             c.feature ^= 0xdead_beef;
         }
