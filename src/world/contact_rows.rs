@@ -52,11 +52,6 @@ impl KeptContactRows {
         self.valid = false;
     }
 
-    /// Where the kept contact rows end in the builder.
-    pub(super) fn mark(&self) -> RowsMark {
-        self.mark
-    }
-
     /// The generation of the contact rows the builder starts with and where they end, if
     /// recorded: rows of the same generation are the same bits.
     pub(super) fn current(&self) -> Option<(u64, RowsMark)> {
@@ -91,10 +86,10 @@ impl KeptContactRows {
         self.mark = mark;
     }
 
-    /// Whether the recorded rows are this step's: the same step length, every coordinate
-    /// within `tolerance` of the recorded one, the same contacts in the same order (colliders,
-    /// and which get rows) with the points and normal of each that gets rows within
-    /// `tolerance` (m; the normal's components).
+    /// Where the recorded rows end in the builder if they are this step's: the same step
+    /// length, every coordinate within `tolerance` of the recorded one, the same contacts in the
+    /// same order (colliders, and which get rows) with the points and normal of each that gets
+    /// rows within `tolerance` (m; the normal's components). None otherwise.
     pub(super) fn hold(
         &self,
         tolerance: f64,
@@ -102,9 +97,9 @@ impl KeptContactRows {
         bodies: &[Multibody],
         contacts: &[Contact],
         has_rows: &[bool],
-    ) -> bool {
+    ) -> Option<RowsMark> {
         if !self.valid || self.h != h || self.contacts.len() != contacts.len() {
-            return false;
+            return None;
         }
         let close = |a: &Vec3, b: &Vec3| (a - b).amax() <= tolerance;
         let same_contacts = self.contacts.iter().zip(contacts).zip(has_rows).all(|((f, c), &rows)| {
@@ -116,12 +111,12 @@ impl KeptContactRows {
                         && close(&f.normal, &c.normal))
         });
         if !same_contacts {
-            return false;
+            return None;
         }
         let mut recorded = self.q.iter();
         let same_q = bodies
             .iter()
             .all(|b| b.state.q.iter().all(|x| recorded.next().is_some_and(|r| (x - r).abs() <= tolerance)));
-        same_q && recorded.next().is_none()
+        (same_q && recorded.next().is_none()).then_some(self.mark)
     }
 }

@@ -1050,12 +1050,12 @@ impl World {
         }));
         // The builder still starts with last step's contact rows: kept if they are this step's
         // rows (see `contact_rows`), with new targets; else formed anew.
-        let keep_rows =
-            self.options.mass_matrix_reuse.filter(|_| !after_solve).is_some_and(|tolerance| {
+        let kept =
+            self.options.mass_matrix_reuse.filter(|_| !after_solve).and_then(|tolerance| {
                 self.kept_contact_rows.hold(tolerance, h, bodies, &contacts, &has_rows)
             });
-        if keep_rows {
-            builder.truncate(self.kept_contact_rows.mark());
+        if let Some(mark) = kept {
+            builder.truncate(mark);
             let with_rows = contacts.iter().zip(&has_rows).filter(|(_, rows)| **rows).map(|(c, _)| c);
             // The approach speed from the bodies' world velocities when the speculation test
             // formed them (O(1) per contact; the same J v as the normal row's, up to the kept
