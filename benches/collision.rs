@@ -1,6 +1,6 @@
 //! Criterion benchmarks of collision detection per step (kinematics of the bodies' poses,
 //! broad phase, narrow phase, reduction): 1000 boxes in a pile on the ground, the 10-box stack of
-//! ../shared/peers/box_stack10.xml, and the capsule humanoid of ../shared/peers/humanoid_fall.xml
+//! benches/peers/box_stack10.xml, and the capsule humanoid of benches/peers/humanoid_fall.xml
 //! lying on the ground.
 //!
 //! Run: `cargo bench --bench collision`.

@@ -1,4 +1,4 @@
-//! Criterion benchmarks of RNEA, CRBA and ABA: the robots of ../shared/models (ur5, panda, solo12
+//! Criterion benchmarks of RNEA, CRBA and ABA: the robots of models (ur5, panda, solo12
 //! with a free base), a 30-link chain, and chains of 10, 100 and 1000 links for the cost per dof.
 //! Each model is loaded once; every iteration takes the next state of a pool of random states.
 //!
@@ -35,7 +35,7 @@ impl Fixture {
 }
 
 fn urdf(name: &str, floating: bool) -> Model {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/models").join(name);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models").join(name);
     let options = UrdfOptions { floating_base: floating, ..Default::default() };
     gelenk::io::urdf::load_file(path, &options).expect("model loads")
 }

@@ -1,9 +1,9 @@
-"""MuJoCo's whole-step time on the peer scenes (../shared/peers/*.xml), for a same-session
+"""MuJoCo's whole-step time on the peer scenes (benches/peers/*.xml), for a back-to-back
 comparison with `gelenk bench world SCENE`: the host's speed varies by ±40 % between runs
 minutes apart, so figures measured at different times cannot be compared, ratios measured
 back to back can. Not part of CI (needs `pip install mujoco`).
 
-Usage: python3 benches/mujoco_peers.py ../shared/peers/box_stack10.xml ../shared/peers/humanoid_fall.xml
+Usage: python3 benches/mujoco_peers.py benches/peers/box_stack10.xml benches/peers/humanoid_fall.xml
 
 Per scene: 5 episodes of 2500 steps from the initial state (keyframe 0 if the file has one) (`mj_step` with `nstep`, the loop
 runs in C), the mean µs per step of each episode and their median: the same statistic as

@@ -1,6 +1,6 @@
 """models/ragdoll.urdf as MJCF, so that MuJoCo can be timed on the same ragdoll as
-`gelenk bench world models/ragdoll_fall.toml` (issue 7 compares gelenk's ragdoll with MuJoCo's
-smaller passive humanoid of ../shared/peers/humanoid_fall.xml; this measures the same model).
+`gelenk bench world models/ragdoll_fall.toml` (MuJoCo's passive humanoid of
+benches/peers/humanoid_fall.xml is a smaller model; this measures the same one).
 Not part of CI (the timing needs `pip install mujoco`; the conversion itself needs only Python).
 
 Usage:

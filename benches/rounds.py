@@ -7,7 +7,7 @@ Usage:
   python3 benches/rounds.py --rounds 25 \
       --gelenk new=target/release/gelenk:models/ragdoll_fall.toml \
       --gelenk old=/tmp/old/gelenk:/tmp/old_ragdoll_fall.toml \
-      --mujoco hum=../shared/peers/humanoid_fall.xml \
+      --mujoco hum=benches/peers/humanoid_fall.xml \
       --mujoco rag=ragdoll_seed7.xml
 
 Each `--gelenk NAME=BINARY:SCENE` runs `BINARY bench world SCENE --rounds 5` (median over five
@@ -17,7 +17,7 @@ Prints every round, then per entry the median and range of its episode means, an
 and range of every gelenk entry's per-round ratio to every other entry. `--sleep TOL` runs both
 sides with sleeping on: gelenk's `bench world --sleep` (thresholds 0.01 m/s and rad/s), MuJoCo's
 `mjENBL_SLEEP` with `sleep_tolerance = TOL` (its default, 1e-3, never puts the humanoid of
-../shared/peers to sleep within the 5 s).
+benches/peers to sleep within the 5 s).
 """
 import argparse
 import re

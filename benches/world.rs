@@ -1,4 +1,4 @@
-//! Whole-step benchmarks of the scenes of ../shared/peers rebuilt in gelenk, at dt = 2 ms:
+//! Whole-step benchmarks of the scenes of benches/peers rebuilt in gelenk, at dt = 2 ms:
 //! box_stack10.xml (ten 0.1 m cubes of density 500 resting in a stack on a plane) with each
 //! solver chain, let settle for 0.5 s first; and humanoid_fall.xml (loaded by gelenk's MJCF
 //! reader: a capsule humanoid, free base + 21 hinges, joint damping 1) dropped on the plane for
@@ -45,7 +45,7 @@ fn box_stack(solvers: Vec<SolverKind>) -> World {
 }
 
 fn humanoid(solvers: Vec<SolverKind>) -> World {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/peers/humanoid_fall.xml");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/humanoid_fall.xml");
     let scene = gelenk::io::mjcf::load_file(path).expect("humanoid_fall.xml loads");
     let mut options =
         WorldOptions { dt: scene.timestep, solvers, friction: scene.friction, ..Default::default() };

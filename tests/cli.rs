@@ -1,5 +1,5 @@
 //! The `gelenk` command line: `inspect --json` reports Pinocchio's joint layout, `dynamics`
-//! reproduces the reference values of ../shared/reference, and bad input gives one readable line
+//! reproduces the reference values of tests/data/reference, and bad input gives one readable line
 //! on stderr with a non-zero exit status, never a panic.
 
 mod common;
@@ -13,7 +13,7 @@ fn gelenk(args: &[&str]) -> Output {
 }
 
 fn model_path(name: &str) -> String {
-    shared_dir().join("models").join(name).display().to_string()
+    models_dir().join(name).display().to_string()
 }
 
 #[test]
@@ -30,7 +30,7 @@ fn inspect_json_reports_layout_and_mass() {
     assert_eq!(joints[0]["parent"], "universe");
     assert_eq!((joints[1]["idx_q"].as_u64(), joints[1]["idx_v"].as_u64()), (Some(7), Some(6)));
     let reference: Value = serde_json::from_str(
-        &std::fs::read_to_string(shared_dir().join("reference/solo12_floating.json")).unwrap(),
+        &std::fs::read_to_string(reference_dir().join("solo12_floating.json")).unwrap(),
     )
     .unwrap();
     let mass = reference["states"][0]["mass"].as_f64().unwrap();
@@ -44,7 +44,7 @@ fn inspect_json_reports_layout_and_mass() {
 
 #[test]
 fn dynamics_command_reproduces_reference() {
-    let text = std::fs::read_to_string(shared_dir().join("reference/ur5.json")).unwrap();
+    let text = std::fs::read_to_string(reference_dir().join("ur5.json")).unwrap();
     let reference: Value = serde_json::from_str(&text).unwrap();
     let states: Vec<Value> = reference["states"]
         .as_array()
@@ -183,7 +183,7 @@ fn report_stability_writes_markdown_and_csv_for_a_quick_subset() {
 #[test]
 fn report_speed_error_quick_writes_sane_files() {
     let dir = std::env::temp_dir().join(format!("gelenk_speed_error_{}", std::process::id()));
-    let peers = shared_dir().join("peers");
+    let peers = peers_dir();
     let out = gelenk(&[
         "report",
         "speed-error",

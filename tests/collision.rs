@@ -1094,8 +1094,8 @@ fn urdf_collisions(path: &Path) -> (Vec<(String, String)>, usize) {
 }
 
 #[test]
-fn shared_urdf_models_load_with_missing_meshes_skipped_or_reported() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/models");
+fn urdf_models_load_with_missing_meshes_skipped_or_reported() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models");
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -1150,7 +1150,7 @@ fn shared_urdf_models_load_with_missing_meshes_skipped_or_reported() {
             Err(e) => panic!("{name}: unexpected error {e}"),
         }
     }
-    assert!(tested >= 4, "the shared models with collision geometry were found ({tested})");
+    assert!(tested >= 4, "the models with collision geometry were found ({tested})");
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! One frictionless contact between two free bodies: the impulse of every solver equals the
 //! lecture's closed form f = −(1+ε)(N·v_rel) / (m_A⁻¹ + m_B⁻¹ + (r_A×N)ᵀ Ĵ_A⁻¹ (r_A×N) +
-//! (r_B×N)ᵀ Ĵ_B⁻¹ (r_B×N)) (eq. 17 of ../shared/seed), and the post-impact normal velocity is
+//! (r_B×N)ᵀ Ĵ_B⁻¹ (r_B×N)) (eq. 17 of C. Herta, "Game Physik — Simulating Physics", 2004), and the post-impact normal velocity is
 //! −ε times the pre-impact one.
 
 use gelenk::collision::{CollisionOptions, CollisionWorld, MeshOptions};

@@ -1,6 +1,6 @@
 //! The MJCF loader against MuJoCo: tests/data/mjcf_reference.json (made offline by
 //! tests/data/gen_mjcf_reference.py; CI needs no MuJoCo) holds, for the three peer scenes of
-//! ../shared/peers and two scenes exercising the rest of the supported subset, MuJoCo's layout,
+//! benches/peers and two scenes exercising the rest of the supported subset, MuJoCo's layout,
 //! masses, options, initial configuration and, at random states, body poses, mass matrix, bias
 //! forces and gravity, already converted to gelenk's conventions. Every quantity must match to
 //! 1e-9 relative to the largest entry of the reference. Bad documents must give typed errors
@@ -93,11 +93,7 @@ fn peer_scenes_have_mujocos_dimensions() {
 
 #[test]
 fn peer_files_load_and_match_the_reference_text() {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/peers");
-    if !dir.exists() {
-        eprintln!("skipped: {} not present", dir.display());
-        return;
-    }
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers");
     for name in ["pendulum5", "humanoid_fall", "box_stack10"] {
         let path = dir.join(format!("{name}.xml"));
         let scene = mjcf::load_file(&path).unwrap();

@@ -99,7 +99,7 @@ fn algorithms_do_not_allocate_after_data_new() {
     let (n, ()) = allocations_in(|| ());
     assert_eq!(n, 0);
 
-    let solo = load_file(common::shared_dir().join("models/solo12.urdf"), &UrdfOptions::floating()).unwrap();
+    let solo = load_file(common::models_dir().join("solo12.urdf"), &UrdfOptions::floating()).unwrap();
     assert_eq!((solo.nq(), solo.nv()), (19, 18));
     let tree = all_joints_model();
     for i in 1..tree.nbodies() {

@@ -1,7 +1,7 @@
 //! PGS with subspace minimisation (`PgsSolver::subspace`) on problems where plain PGS stalls:
-//! two steps of `../shared/peers/humanoid_fall.xml` (written by `World::problem` and
+//! two steps of `benches/peers/humanoid_fall.xml` (written by `World::problem` and
 //! `gelenk::io::problem::problem_to_json` at steps 80 and 898 of the episode that
-//! `gelenk bench world ../shared/peers/humanoid_fall.xml` runs), where the chain `pgs100,clarabel`
+//! `gelenk bench world benches/peers/humanoid_fall.xml` runs), where the chain `pgs100,clarabel`
 //! fell back to clarabel. Step 80: the four corner contacts of a foot (12 rows, a redundant set on
 //! a stiff chain), where two corners must slip by 4.5e-5 m/s; plain sweeps creep along the
 //! contacts' internal-force direction and stay above 1e-6 m/s for thousands of sweeps. Step 898:

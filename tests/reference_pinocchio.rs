@@ -1,4 +1,4 @@
-//! Every quantity of every state in ../shared/reference (Pinocchio 4.1.0) is reproduced to 1e-9
+//! Every quantity of every state in tests/data/reference (Pinocchio 4.1.0) is reproduced to 1e-9
 //! relative to max(1, |reference|): mass matrix, nonlinear effects, gravity, RNEA, ABA, CRBA-based
 //! forward dynamics, energies, centre of mass, mass, joint placements and the last joint's local
 //! Jacobian; and the joint index layout is Pinocchio's.

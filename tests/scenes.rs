@@ -64,7 +64,7 @@ fn scene_paths_resolve_against_the_scene_file() {
     let q = &s.world.multibody(panda).state.q;
     let j4 = model.joint_id("panda_joint4").unwrap();
     assert_eq!(q[model.idx_q(j4)], -2.356);
-    // Its collision meshes are not in ../shared: skipped, with a warning each.
+    // Its collision meshes are not in the repository: skipped, with a warning each.
     assert!(!s.warnings.is_empty());
     assert!(s.warnings.iter().all(|w| w.contains("skipped")), "{:?}", s.warnings);
 }
@@ -85,7 +85,7 @@ fn an_unknown_key_is_an_error_naming_the_key_and_its_line() {
 
     // In an inline table.
     let message = load_error(
-        "[[urdf]]\npath = \"../../shared/models/panda.urdf\"\nmissing_meshes = \"skip\"\nservo = { gain = 1, max_velocity = 1, max_force = 1, kp = 3 }\n",
+        "[[urdf]]\npath = \"panda.urdf\"\nmissing_meshes = \"skip\"\nservo = { gain = 1, max_velocity = 1, max_force = 1, kp = 3 }\n",
     );
     assert!(message.contains("line 4") && message.contains("urdf[0].servo.kp"), "{message}");
 }
@@ -179,13 +179,13 @@ fn inconsistent_entries_are_errors_at_their_entry() {
     let message = load_error("[[urdf]]\nname = \"r\"\npath = \"no/such.urdf\"\n");
     assert!(message.contains("line 3") && message.contains("urdf[0].path"), "{message}");
     // A joint the model does not have, and an initial position outside the limits.
-    let panda = "[[urdf]]\npath = \"../../shared/models/panda.urdf\"\nmissing_meshes = \"skip\"\n";
+    let panda = "[[urdf]]\npath = \"panda.urdf\"\nmissing_meshes = \"skip\"\n";
     let message = load_error(&format!("{panda}joints = {{ elbow = 1.0 }}\n"));
     assert!(message.contains("line 4") && message.contains("urdf[0].joints.elbow"), "{message}");
     let message = load_error(&format!("{panda}joints = {{ panda_joint4 = 0.5 }}\n"));
     assert!(message.contains("line 4") && message.contains("outside its limits"), "{message}");
     // Meshes missing without `missing_meshes = "skip"`.
-    let message = load_error("[[urdf]]\npath = \"../../shared/models/panda.urdf\"\n");
+    let message = load_error("[[urdf]]\npath = \"panda.urdf\"\n");
     assert!(message.contains("line 2") && message.contains("not found"), "{message}");
 }
 
@@ -316,7 +316,7 @@ fn urdf_entries_take_pose_joints_limits_and_floating_base() {
     let s = scene::load_str(
         r#"
         [[urdf]]
-        path = "../../shared/models/double_pendulum_simple.urdf"
+        path = "double_pendulum_simple.urdf"
         name = "fixed"
         position = [1, 2, 3]
         rpy = [0, 0, 1.5707963267948966]
@@ -324,7 +324,7 @@ fn urdf_entries_take_pose_joints_limits_and_floating_base() {
         limits = { joint1 = [-0.5, 0.5] }
 
         [[urdf]]
-        path = "../../shared/models/double_pendulum_simple.urdf"
+        path = "double_pendulum_simple.urdf"
         name = "floating"
         floating = true
         position = [0, 0, 2]

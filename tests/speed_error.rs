@@ -1,5 +1,5 @@
 //! The speed–error report's pieces: the Pareto front keeps exactly the points no cheaper point
-//! beats, and MuJoCo's pendulum figures are read from ../shared/peers/README.md as printed there.
+//! beats, and MuJoCo's pendulum figures are read from benches/peers/README.md as printed there.
 
 mod common;
 
@@ -15,7 +15,7 @@ fn pareto_front_keeps_the_undominated_points() {
 
 #[test]
 fn mujoco_figures_are_read_from_the_peers_readme() {
-    let points = read_mujoco_points(&common::shared_dir().join("peers/README.md"));
+    let points = read_mujoco_points(&common::peers_dir().join("README.md"));
     assert_eq!(points.len(), 7, "{points:?}");
     let rk4 = points.iter().find(|p| p.integrator == "RK4" && p.dt == 1e-3).unwrap();
     assert_eq!((rk4.cost_us, rk4.error, rk4.energy), (7400.0, 2.0e-8, -8.5e-11));

@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use std::f64::consts::PI;
 
 fn model_path(name: &str) -> std::path::PathBuf {
-    common::shared_dir().join("models").join(name)
+    common::models_dir().join(name)
 }
 
 fn load(name: &str, floating: bool) -> Model {
@@ -52,7 +52,7 @@ fn urdf_masses(name: &str) -> (f64, f64) {
 }
 
 #[test]
-fn shared_models_load_with_their_dimensions() {
+fn robot_models_load_with_their_dimensions() {
     for (file, floating, nq, nv, nbodies) in [
         ("panda.urdf", false, 9, 9, 10),
         ("ur5_robot.urdf", false, 6, 6, 7),
@@ -175,7 +175,7 @@ fn ur5_and_solo12_fixed_frames() {
 }
 
 #[test]
-fn shared_model_limits_and_joint_dynamics() {
+fn robot_model_limits_and_joint_dynamics() {
     let m = load("panda.urdf", false);
     let j4 = m.joint_id("panda_joint4").unwrap();
     let (iq, iv) = (m.idx_q(j4), m.idx_v(j4));

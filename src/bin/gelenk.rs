@@ -159,7 +159,7 @@ enum ReportCommand {
         #[arg(long)]
         quick: bool,
         /// Directory with pendulum5.xml and MuJoCo's figures (README.md).
-        #[arg(long, default_value = "../shared/peers")]
+        #[arg(long, default_value = "benches/peers")]
         peers: PathBuf,
         /// Timed repeats per configuration (median reported); default 3, 1 with --quick.
         #[arg(long)]
@@ -188,7 +188,7 @@ enum BenchCommand {
         rounds: usize,
     },
     /// Whole-step time of a scene (models/*.toml, or an MJCF .xml such as
-    /// ../shared/peers/humanoid_fall.xml): median and mean µs per step, time per phase.
+    /// benches/peers/humanoid_fall.xml): median and mean µs per step, time per phase.
     World {
         /// Scene file (.toml) or MJCF file (.xml).
         scene: PathBuf,

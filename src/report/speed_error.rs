@@ -3,7 +3,7 @@
 //! Pareto front of each scene, beside MuJoCo's figures for the 5-link pendulum.
 //!
 //! - Smooth scenes (no contact), each stepped by every [`IntegratorKind`] at several steps:
-//!   `pendulum5` (../shared/peers/pendulum5.xml through the MJCF reader, hinges at 0.3 rad, 5 s;
+//!   `pendulum5` (benches/peers/pendulum5.xml through the MJCF reader, hinges at 0.3 rad, 5 s;
 //!   error: largest joint-angle error at T, MuJoCo's measure; secondary: the largest over
 //!   samples every 40 ms, or at every step for steps longer than 40 ms that do not divide it;
 //!   energy: (E(T) − E₀)/(E₀ − E_rest)),
@@ -86,7 +86,7 @@ pub struct SpeedErrorOptions {
     /// A subset that runs in seconds (CI).
     pub quick: bool,
     /// Directory holding `pendulum5.xml` and MuJoCo's figures (`README.md`), normally
-    /// `../shared/peers`.
+    /// `benches/peers`.
     pub peers_dir: PathBuf,
     /// Timed repeats per configuration; the median is reported.
     pub repeats: usize,
@@ -172,7 +172,7 @@ pub const SCENES: [SceneMeasures; 7] = [
     },
 ];
 
-/// One of MuJoCo's points for the pendulum (../shared/peers/README.md).
+/// One of MuJoCo's points for the pendulum (benches/peers/README.md).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PeerPoint {
     /// Integrator name as MuJoCo's table writes it.
@@ -659,7 +659,7 @@ pub fn markdown(report: &SpeedErrorReport) -> String {
         let worst = report.goal.iter().map(GoalPoint::ratio).fold(0.0, f64::max);
         let _ = writeln!(
             out,
-            "\nGoal \"at every error level gelenk's best costs at most half of MuJoCo's best\", checked at MuJoCo's Pareto points (★): **{verdict}** (largest cost ratio {worst:.2}). MuJoCo's figures are from ../shared/peers/README.md (same machine kind, another run: ratios carry ±25 %).\n"
+            "\nGoal \"at every error level gelenk's best costs at most half of MuJoCo's best\", checked at MuJoCo's Pareto points (★): **{verdict}** (largest cost ratio {worst:.2}). MuJoCo's figures are from benches/peers/README.md (same machine kind, another run: ratios carry ±25 %).\n"
         );
     }
     for scene in SCENES {

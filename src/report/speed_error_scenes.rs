@@ -273,7 +273,7 @@ pub(crate) fn smooth_errors(
             }
             let rest = potential_energy(model, &mut data, &model.neutral_configuration()).unwrap_or(f64::NAN);
             let e = energy(&mut data, &q_end, &v_end);
-            // MuJoCo's measure (../shared/peers): the largest joint-angle error at T.
+            // MuJoCo's measure (benches/peers): the largest joint-angle error at T.
             let final_error = (&q_end - &q_ref).amax();
             (final_error, (e - e0) / (e0 - rest), worst)
         }

@@ -1,7 +1,7 @@
 //! [`World`]: several multibodies and static geometry stepped together with contacts, joint
 //! limits, motors, servos, joint friction and loop closures as one constraint problem per step.
 //!
-//! [`World::step`] is the table of contents (as in ../shared/DESIGN.md):
+//! [`World::step`] is the table of contents (docs/architecture.md):
 //! check state finite → kinematics → collision → free motion → constraint rows → solve →
 //! velocity update (→ rows for the speculative contacts and limit stops that the solved velocity
 //! closes, and solve again) → integrate q on the manifold (free origins on straight lines, see

@@ -1,4 +1,5 @@
-//! Shared helpers for the integration tests: the reference data of ../shared/reference and model
+//! Helpers for the integration tests: where the repository's data lives (every file a test reads is
+//! inside the repository), the Pinocchio reference data of tests/data/reference, and model
 //! construction from its tree descriptions.
 #![allow(dead_code)]
 
@@ -8,15 +9,30 @@ use nalgebra::{DMatrix, DVector};
 use serde_json::Value;
 use std::path::PathBuf;
 
-/// The `shared/` folder beside the project root.
-pub fn shared_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared")
+/// The repository's root (the folder of Cargo.toml).
+pub fn repo_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `models/`: the scenes and robot descriptions (the example-robot-data URDFs among them).
+pub fn models_dir() -> PathBuf {
+    repo_dir().join("models")
+}
+
+/// `tests/data/reference/`: Pinocchio 4.1.0's values, one JSON file per case.
+pub fn reference_dir() -> PathBuf {
+    repo_dir().join("tests/data/reference")
+}
+
+/// `benches/peers/`: the MJCF peer scenes and MuJoCo's figures on them (README.md).
+pub fn peers_dir() -> PathBuf {
+    repo_dir().join("benches/peers")
 }
 
 /// Every reference case, parsed.
 pub fn reference_cases() -> Vec<(String, Value)> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(shared_dir().join("reference"))
-        .expect("shared/reference exists")
+    let mut files: Vec<PathBuf> = std::fs::read_dir(reference_dir())
+        .expect("tests/data/reference exists")
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "json"))
         .collect();
@@ -77,7 +93,7 @@ pub fn model_of(case: &Value) -> Model {
         "urdf" => {
             let options =
                 UrdfOptions { floating_base: case["floating_base"].as_bool().unwrap(), ..Default::default() };
-            gelenk::io::urdf::load_file(shared_dir().join(case["urdf"].as_str().unwrap()), &options).unwrap()
+            gelenk::io::urdf::load_file(repo_dir().join(case["urdf"].as_str().unwrap()), &options).unwrap()
         }
         "tree" => {
             let mut builder = ModelBuilder::new();

@@ -8,7 +8,7 @@ gelenk's MJCF loader (src/io/mjcf.rs) must reproduce. Run offline, by hand:
 CI never runs this script: tests/mjcf.rs only reads the JSON, which also embeds the XML text of
 every case (so the test does not depend on files outside the crate).
 
-Cases: the three peer scenes of ../../shared/peers (pendulum5, humanoid_fall, box_stack10) and two
+Cases: the three peer scenes of benches/peers (pendulum5, humanoid_fall, box_stack10) and two
 hand-written scenes exercising the rest of the loader's subset (orientations, defaults classes,
 slide/ball joints, joint `pos`, welded bodies, `<frame>`, `<inertial>`, fromto boxes, radians and
 other Euler sequences).
@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PEERS = os.path.normpath(os.path.join(HERE, "..", "..", "..", "shared", "peers"))
+PEERS = os.path.normpath(os.path.join(HERE, "..", "..", "benches", "peers"))
 OUT = os.path.join(HERE, "mjcf_reference.json")
 SEED = 20240611
 STATES = 3
