@@ -29,10 +29,9 @@ fn inspect_json_reports_layout_and_mass() {
     assert_eq!(joints[0]["type"], "free");
     assert_eq!(joints[0]["parent"], "universe");
     assert_eq!((joints[1]["idx_q"].as_u64(), joints[1]["idx_v"].as_u64()), (Some(7), Some(6)));
-    let reference: Value = serde_json::from_str(
-        &std::fs::read_to_string(reference_dir().join("solo12_floating.json")).unwrap(),
-    )
-    .unwrap();
+    let reference: Value =
+        serde_json::from_str(&std::fs::read_to_string(reference_dir().join("solo12_floating.json")).unwrap())
+            .unwrap();
     let mass = reference["states"][0]["mass"].as_f64().unwrap();
     assert!((v["mass"].as_f64().unwrap() - mass).abs() < 1e-9 * mass);
 
