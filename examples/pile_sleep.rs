@@ -1,5 +1,5 @@
 //! When does the pile of 20 ragdolls (`models/ragdoll_pile.toml`) fall asleep, for another
-//! seed of its drop? Issue 7 asks for all asleep within 10 s; the shipped seed is one sample of
+//! seed of its drop? The test asks for all asleep within 10 s; the shipped seed is one sample of
 //! a chaotic pile, and this measures others.
 //!
 //! ```sh

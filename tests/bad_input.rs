@@ -654,8 +654,8 @@ fn non_finite_inputs_name_the_joint() {
     non_finite(potential_energy(&model, &mut data, &q_bad).unwrap_err(), "q", 5, "slide_joint");
 }
 
-/// A zero quaternion is no rotation: refused by name, where it used to come out as a singular
-/// mass matrix ("no mass or inertia"). A quaternion of any other length is normalized.
+/// A zero quaternion is no rotation: refused by the joint's name (normalizing it would divide by
+/// zero and end as a singular mass matrix). A quaternion of any other length is normalized.
 #[test]
 fn a_zero_quaternion_is_refused_and_others_are_normalized() {
     let model = small_model();

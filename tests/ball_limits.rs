@@ -13,7 +13,7 @@ use nalgebra::{DVector, UnitQuaternion};
 
 const SWING: f64 = 0.5;
 const TWIST: f64 = 0.4;
-/// The acceptance bound of the issue: no limit exceeded by more than 1°.
+/// The acceptance bound: no limit exceeded by more than 1°.
 const ONE_DEGREE: f64 = std::f64::consts::PI / 180.0;
 
 /// A 1 kg rod of 0.5 m hanging from a ball joint at the origin, twist axis along the rod (−z).

@@ -1,6 +1,6 @@
-//! Numerical stability on hard cases (issue 8): each case of `gelenk::report::stability` — the
+//! Numerical stability on hard cases: each case of `gelenk::report::stability` — the
 //! same scenes and measurements as `gelenk report stability` — asserted at a setting that should
-//! pass, and, where the physics or the integrator does not meet the issue's criterion, the
+//! pass, and, where the physics or the integrator does not meet the case's criterion, the
 //! measured limit asserted and documented instead (never a silently weakened bound).
 
 use gelenk::integrators::IntegratorKind;
@@ -62,7 +62,7 @@ fn newtons_cradle_conserves_momentum_and_never_gains_energy() {
     // Simultaneous impacts are not unique. With restitution as a target velocity on the one
     // closing contact (the others touch at rest), every solver returns the same answer: the
     // striker bounces back at −0.6 m/s and the four touching balls leave together at 0.4 m/s —
-    // momentum 1 and energy 0.5 J, as before, but not the sequential answer (0, 0, 0, 0, 1).
+    // momentum 1 and energy 0.5 J as before the impact, but not the sequential answer (0, 0, 0, 0, 1).
     for solver in [LEMKE, PGS50] {
         let o = assert_passes("cradle", solver, 1.0 / 240.0);
         assert!(o.detail.starts_with("final v = [-0.600, 0.400, 0.400, 0.400, 0.400]"), "{}", o.detail);
@@ -79,19 +79,19 @@ fn newtons_cradle_conserves_momentum_and_never_gains_energy() {
 #[test]
 fn dzhanibekov_spin_flips_with_the_reference_period() {
     // The flip period matches the RK4 solution of Euler's equations to 1 %. Angular momentum
-    // and energy are NOT constant to the issue's 1e-6: the world's semi-implicit Euler treats
-    // the gyroscopic term ω × Iω explicitly and drifts to first order in dt (measured max
+    // and energy are NOT constant to the case's 1e-6 with the world's semi-implicit Euler, which
+    // treats the gyroscopic term ω × Iω explicitly and drifts to first order in dt (measured max
     // relative drift 8.6e-2 at dt = 1e-3, 8.1e-3 at 1e-4). The bound below is that measured
-    // limit; 1e-6 waits for the RK4/implicit-gyroscopic integrator (src/integrators/).
+    // limit; with `integrator = Rk4` the world holds 1e-6 (tested below).
     let o = run("dzhanibekov", SolverKind::Clarabel, 1e-4);
-    assert!(o.figure < 1e-2, "drift {:e} (was 8.1e-3)", o.figure);
+    assert!(o.figure < 1e-2, "drift {:e} (measured 8.1e-3)", o.figure);
     let error: f64 = o.detail.rsplit("error ").next().unwrap().split(')').next().unwrap().parse().unwrap();
     assert!(error < 0.01, "flip period error {error}: {}", o.detail);
 }
 
 #[test]
 fn four_bar_stays_closed_and_keeps_its_energy_with_rk4() {
-    // The issue's criterion: closure < 1e-8 m and |ΔE| < 1e-4 (of the largest kinetic energy)
+    // The criterion: closure < 1e-8 m and |ΔE| < 1e-4 (of the largest kinetic energy)
     // over 10 s, in the world with `integrator = Rk4`: without contacts every step is an RK4
     // step of the closure's index-1 (acceleration-level) form, then projected onto the closure
     // manifold. The default velocity-level step keeps the closure but loses ~24 % of the energy
@@ -154,9 +154,9 @@ fn a_fast_small_sphere_and_a_thin_wall() {
 #[test]
 fn far_from_the_origin() {
     // The same thrown, spinning ball at a (1e6, 1e6, 1e6) m offset moves as at the origin within
-    // 1e-6 of its travel. This failed by 3–12 % while CRBA formed M about the world origin
-    // (terms of size m·|p|² ≈ 1e12 cancelled to 1e-3: a 6 % error in the Delassus diagonal);
-    // CRBA now works about the first body's origin. Measured after the fix: 1.2e-8.
+    // 1e-6 of its travel (measured 1.2e-8). CRBA works about the first body's origin: about the
+    // world origin, terms of size m·|p|² ≈ 1e12 would cancel to 1e-3 and cost M its digits
+    // (a 6 % error in the Delassus diagonal, 3–12 % in the trajectory).
     for solver in [PGS50, SolverKind::Clarabel] {
         assert_passes("far_origin", solver, 1.0 / 240.0);
     }
@@ -200,7 +200,7 @@ fn heavy_tipped_chain(links: usize, ratio: f64) -> gelenk::Model {
 
 #[test]
 fn a_hundred_link_chain_with_a_thousandfold_end_mass_keeps_its_energy_with_rk4() {
-    // Issue 8: a 100-link chain with a 1000:1 end mass keeps |ΔE/E| < 1e-6 without contact
+    // A 100-link chain with a 1000:1 end mass keeps |ΔE/E| < 1e-6 without contact
     // (RK4 or better). Swinging from 0.3 rad at the root and small bends along the chain, 1 s of
     // motion at h = 1e-4 s with gelenk::integrators::Rk4 on the manifold.
     use gelenk::algorithms::{kinetic_energy, potential_energy};
@@ -233,7 +233,7 @@ fn a_hundred_link_chain_with_a_thousandfold_end_mass_keeps_its_energy_with_rk4()
 
 #[test]
 fn dzhanibekov_spin_keeps_momentum_and_energy_in_the_world_with_rk4() {
-    // The issue's criterion (|ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 % of the reference)
+    // The criterion (|ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 % of the reference)
     // through the world: no contact, so every step is an RK4 step of the free joint.
     let o = assert_passes_with("dzhanibekov", SolverKind::Clarabel, 1e-3, IntegratorKind::Rk4);
     assert!(o.detail.ends_with("steps: rk4"), "{}", o.detail);
@@ -242,7 +242,7 @@ fn dzhanibekov_spin_keeps_momentum_and_energy_in_the_world_with_rk4() {
 
 #[test]
 fn dzhanibekov_spin_keeps_momentum_and_energy_with_rk4() {
-    // The issue's criterion (|ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 % of a reference)
+    // The criterion (|ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 % of a reference)
     // with gelenk::integrators::Rk4 on the free joint, outside the world (no contact): the
     // world's semi-implicit step fails it (see dzhanibekov in the stability table).
     use gelenk::integrators::{Integrator, Rk4};

@@ -1,5 +1,5 @@
 //! The ragdoll of models/ragdoll.urdf (de Leva 1996 segments, ball/hinge/universal joints with
-//! anatomical limits) behaves as issue 7 asks: dropped from 1 m with a random spin it comes to
+//! anatomical limits) meets its acceptance bounds: dropped from 1 m with a random spin it comes to
 //! rest within 3 s of landing, no joint opens, no limit is exceeded by more than 1°, nothing
 //! penetrates more than 5 mm and the energy never grows; a pile of ragdolls stays finite, above
 //! the ground and falls asleep; a pose servo (powered ragdoll) holds the pose with bounded torque.
@@ -18,7 +18,7 @@ fn scene_text(name: &str) -> String {
     std::fs::read_to_string(models().join(name)).unwrap()
 }
 
-/// The issue's acceptance bounds.
+/// The acceptance bounds.
 const ONE_DEGREE: f64 = std::f64::consts::PI / 180.0;
 const MAX_PENETRATION: f64 = 0.005;
 const MAX_JOINT_GAP: f64 = 0.001;
@@ -206,24 +206,20 @@ fn a_pile_of_four_ragdolls_sleeps_within_ten_seconds() {
     check_pile(&pile_text(4), 4, Some(10.0));
 }
 
-/// The whole scene (~30 s in a non-LTO release build on this machine kind since session 12,
-/// less with LTO). Measured (session 8, shoulders with 0.5 N·m joint friction, velocity
-/// vectors averaged for sleeping): all asleep from 7.50 s on (7.34 s since session 12's
-/// speculative-contact filter); before, a shoulder twisted on at ~0.2 rad/s (the forearm's
-/// weight against the joint damping alone) and the pile slept only at 15.2 s.
+/// The whole scene as shipped (the slowest test of the suite: the awake pile's steps solve ~2000
+/// rows each). The shoulders' 0.5 N·m of joint friction is what lets it sleep: with joint
+/// damping alone an upper arm lying on another ragdoll twists on at ~0.2 rad/s under its
+/// forearm's weight (`cargo run --release --example pile_sleep -- 3 12` prints when it sleeps).
 #[test]
 fn a_pile_of_twenty_ragdolls_stays_finite_above_ground_and_sleeps_within_ten_seconds() {
     check_pile(&scene_text("ragdoll_pile.toml"), 20, Some(10.0));
 }
 
 /// Two other drops of the same pile, so that the criteria are not one seed's luck. Where a pile
-/// comes to rest is chaotic: a change of rounding alone (session 21's compact joint rows, W
-/// equal to 1e-12) gives another pile, and its last creep sets when it sleeps. Session 21,
-/// development build: seeds 1–6 all asleep at 10.04, 6.00, 4.87, 6.66, 5.87 and 11.40 s (session
-/// 17's rounding: 6.79 and 5.59 s for seeds 1 and 2); the late ones are a head and a hand
-/// turning under their joint's damping near a neutral balance (seed 6's wrist at 0.03 rad/s at
-/// 10 s, the same with 1000 sweeps instead of 100: the model, not the solver). The shipped drop
-/// is held to the issue's 10 s above; these two to 12 s.
+/// comes to rest is chaotic: a change of rounding alone gives another pile, and its last creep
+/// (a head or a hand turning under its joint's damping near a neutral balance, the same with
+/// 1000 sweeps as with 100: the model, not the solver) sets when it sleeps. The shipped drop is
+/// held to 10 s above; these two to 12 s (`cargo run --release --example pile_sleep -- SEED 12`).
 #[test]
 fn the_pile_of_twenty_sleeps_within_twelve_seconds_for_other_drops_too() {
     let text = scene_text("ragdoll_pile.toml");

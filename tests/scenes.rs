@@ -379,11 +379,10 @@ fn the_box_stack_stays_standing_for_2_s() {
 
 #[test]
 fn the_resting_box_stack_is_still_and_its_solves_take_few_sweeps() {
-    // At rest a solve that PGS's subspace step finds within the residual goal was accepted as
-    // it was: the next step's sweeps started from that error (λ moved by 1–3e-8 per sweep) and
-    // kept the stack wobbling at ~4e-7 m/s with 3 sweeps per step for ever (measured before the
-    // change, steps 1500–1700: 3.8e-7 m/s, 600 sweeps). PgsSolver now solves such a λ exactly
-    // where that ends the sweeps (measured: 7.9e-10 m/s, 235 sweeps).
+    // A λ that PGS's subspace step finds within the residual goal but leaves unsolved sustains a
+    // wobble of the redundant stack (~4e-7 m/s, 3 sweeps per step for ever: each step's sweeps
+    // start from the accepted error); PgsSolver solves such a λ exactly where that ends the
+    // sweeps, and the stack is still.
     let mut s = scene::load_file(models_dir().join("box_stack10.toml")).unwrap();
     s.world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..s.world.options().sleep });
     let fastest = |world: &gelenk::world::World| {

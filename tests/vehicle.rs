@@ -53,7 +53,7 @@ fn static_sag_is_sprung_weight_over_four_springs() {
     run(&mut world, 3.0);
     let expected = CHASSIS_MASS * 9.81 / (4.0 * STIFFNESS);
     let travel = vehicle.suspension_travel(&world);
-    // The criterion, ±5 %; the spring is treated implicitly and the contact is hard, so
+    // The criterion, ±5 %; the spring is treated implicitly and the contact is hard, so
     // at rest the travel is the static deflection (measured: 0.04905 m, error ~1e-6 relative).
     for s in travel {
         assert!((s - expected).abs() < 0.05 * expected, "travel {s} m, expected {expected} m");
@@ -78,7 +78,7 @@ fn reaches_five_metres_per_second_within_three_seconds_in_a_straight_line() {
     let v = vehicle.speed(&world);
     let travelled = vehicle.position(&world) - start;
     println!("reached at {reached:?}, v {v}, travelled {travelled:?}, heading {}", vehicle.heading(&world));
-    // The criteria: within 5 % of 5 m/s by 3 s; drift under 1 % of the distance.
+    // The criteria: within 5 % of 5 m/s by 3 s; drift under 1 % of the distance.
     assert!((v - 5.0).abs() < 0.05 * 5.0, "speed after 3 s: {v} m/s");
     assert!(reached.is_some());
     let lateral = travelled.y.abs();
@@ -118,7 +118,7 @@ fn circles_with_the_bicycle_model_radius_at_twenty_degrees() {
     let (_, radius) = fit_circle(&points);
     let predicted = vehicle.predicted_radius(delta);
     println!("radius {radius}, predicted {predicted}, speed {}", vehicle.speed(&world));
-    // The 15 %: the bicycle model ignores tyre slip and the scrub of wide wheels.
+    // The bound, 15 %: the bicycle model ignores tyre slip and the scrub of wide wheels.
     assert!((radius - predicted).abs() < 0.15 * predicted, "radius {radius} m, bicycle model {predicted} m");
 }
 
@@ -137,7 +137,7 @@ fn parked_drift(mu: f64) -> f64 {
 #[test]
 fn parked_on_a_twenty_degree_slope_holds_with_mu_one() {
     let d = parked_drift(1.0);
-    // The criterion: less than 1 mm in 5 s (measured: 3 µm).
+    // The criterion: less than 1 mm in 5 s (measured: 3 µm).
     assert!(d < 1e-3, "moved {d} m in 5 s");
 }
 

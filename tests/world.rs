@@ -631,10 +631,10 @@ fn four_bar_linkage_keeps_its_closure_below_1e_8_m() {
 #[test]
 fn a_spinning_free_body_keeps_its_straight_line_velocity() {
     // Without gravity or contact the centre of a box spinning at 20 rad/s must move on a
-    // straight line at constant speed. Body-frame velocities integrated with the explicit
-    // −ω × v term grew by √(1 + (ωh)²) per step (+22 % over 1 s here); the world now advances
-    // the origin on a straight line and carries v into the new axes exactly, so only rounding
-    // remains (1e-12 over 1000 steps).
+    // straight line at constant speed. The world advances the origin on a straight line and
+    // carries v into the new axes exactly, so only rounding remains (1e-12 over 1000 steps);
+    // body-frame velocities integrated with an explicit −ω × v term would grow by
+    // √(1 + (ωh)²) per step (+22 % over 1 s here).
     let mut options = exact_options();
     options.gravity = Vec3::zeros();
     options.dt = 1e-3;
