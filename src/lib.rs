@@ -45,6 +45,7 @@ pub mod model;
 pub mod plot;
 pub mod render;
 pub mod report;
+pub mod run;
 pub mod scenes;
 pub mod solvers;
 pub mod state;
