@@ -46,8 +46,8 @@
 //!   universe whose joint frame is the world frame: q is the body's world pose, as MuJoCo's qpos.
 //! - Mass properties come from the geoms exactly as MuJoCo computes them (density 1000 kg/m³
 //!   unless `density` or `mass` says otherwise), or from `<inertial>` (`inertiafromgeom`).
-//! - Joint damping and `frictionloss` become [`JointDynamics`]; hinge and slide ranges become
-//!   [`JointLimits`] when limited (`limited="auto"` means "when a range is given"); angles are in
+//! - Joint damping and `frictionloss` become [`JointDynamics`](crate::model::JointDynamics); hinge and slide ranges become
+//!   [`JointLimits`](crate::model::JointLimits) when limited (`limited="auto"` means "when a range is given"); angles are in
 //!   degrees unless `<compiler angle="radian">`. Ball-joint ranges (a cone) are ignored.
 //!   Armature is not modelled by gelenk: it is recorded in [`MjcfScene::joint_armature`].
 //! - Unnamed elements get names: `body{id}` (id as MuJoCo counts bodies, world = 0),

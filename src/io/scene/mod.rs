@@ -85,12 +85,12 @@
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
-//! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored, and the constraint problem's W built on it while the rows stay the same: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`]; true: 1e-8) |
+//! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored, and the constraint problem's W built on it while the rows stay the same: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`](crate::world::WorldOptions::mass_matrix_reuse); true: 1e-8) |
 //! | | `contact_reuse` | keep a pair's contact points while it moves less than this, refreshing only their distances: `true`, `false` or `{ translation = m, rotation = rad }` ([`crate::collision::ManifoldReuse`]; true: 1e-8 m, 1e-7 rad) |
 //! | | `sleep` | let resting bodies sleep (true) |
-//! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`]; `"semi-implicit-euler"`) |
-//! | `[contact]` | `mu`, `mu2`, `restitution`, `bounce_velocity`, `erp`, `cfm`, `surface_layer`, `max_correcting_velocity` | parameters of material 0 ([`ContactParameters`]) |
-//! | `[limits]` | `erp`, `cfm`, `restitution`, `bounce_velocity`, `margin`, `speculative_within` | joint-limit parameters ([`JointLimitParameters`]; a stop within `margin` but further than `speculative_within` gets a row only if the step can close the gap) |
+//! | | `integrator` | scheme of the steps without contacts, limits, motors or joint friction: `"semi-implicit-euler"` (the velocity-level step throughout), `"explicit-euler"`, `"velocity-verlet"`, `"rk4"`, `"dopri45"`, `"gbs"`/`"gbsN"` or `"implicit-euler"` ([`WorldOptions::integrator`](crate::world::WorldOptions::integrator); `"semi-implicit-euler"`) |
+//! | `[contact]` | `mu`, `mu2`, `restitution`, `bounce_velocity`, `erp`, `cfm`, `surface_layer`, `max_correcting_velocity` | parameters of material 0 ([`ContactParameters`](crate::constraints::ContactParameters)) |
+//! | `[limits]` | `erp`, `cfm`, `restitution`, `bounce_velocity`, `margin`, `speculative_within` | joint-limit parameters ([`JointLimitParameters`](crate::constraints::JointLimitParameters); a stop within `margin` but further than `speculative_within` gets a row only if the step can close the gap) |
 //! | `[[material]]` | `index` (≥ 1, required), `name`, and the keys of `[contact]` | a material; unset parameters are `[contact]`'s |
 //! | `[[pair]]` | `materials = [a, b]` (indices or names) and the keys of `[contact]` | parameters when materials a and b touch, instead of the combination rule |
 //! | `[[ground]]` | `kind` | `"plane"` (default), `"slope"` or `"heightfield"` |
@@ -110,7 +110,7 @@
 //! | | `joint_velocities` | initial rates, `{ joint = value }` |
 //! | | `limits` | position limits overriding the file's, `{ joint = [lower, upper] }` (hinge and slider joints) |
 //! | | `servo` | `{ gain, max_velocity, max_force }`: hold every scalar joint at its initial position |
-//! | | `pose_servo` | `{ gain, max_velocity, torque_per_kg }`: a powered ragdoll — every joint but the floating base (ball joints too) driven to its initial position by a [`PoseServo`] whose torque bound is `torque_per_kg` × the mass the joint moves |
+//! | | `pose_servo` | `{ gain, max_velocity, torque_per_kg }`: a powered ragdoll — every joint but the floating base (ball joints too) driven to its initial position by a [`PoseServo`](crate::world::PoseServo) whose torque bound is `torque_per_kg` × the mass the joint moves |
 //! | | `count`, `spacing`, `jitter`, `seed` | copies of the model as for `[[body]]` (named `{name}{k}` or `{name}_{i}_{j}_{k}`) |
 //! | | `random_rotation` | floating base: each copy turned by a uniformly random rotation (seeded by `seed`) (false) |
 //! | | `spin` | floating base: an angular velocity of this magnitude (rad/s) about a random axis (seeded) added to `angular_velocity` (0) |
