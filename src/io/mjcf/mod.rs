@@ -71,11 +71,13 @@
 //! Private modules: `loader` reads the document (sections, defaults, attribute values) and
 //! converts its elements into model bodies (`loader::convert`), checking every attribute against
 //! MuJoCo's schema (`schema`); `coordinates` converts states between MuJoCo's conventions and
-//! gelenk's ([`q_from_mujoco`] and its kin).
+//! gelenk's ([`q_from_mujoco`] and its kin); `world` puts a loaded scene into a
+//! [`crate::world::World`] ([`MjcfScene::into_world`]).
 
 mod coordinates;
 mod loader;
 mod schema;
+mod world;
 
 pub use coordinates::{q_from_mujoco, q_to_mujoco, v_from_mujoco, v_to_mujoco};
 
