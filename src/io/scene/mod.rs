@@ -81,7 +81,7 @@
 //! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
-//! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"cone"`) |
+//! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"pyramid:N"` means the same) (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
@@ -429,24 +429,50 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
     Ok(chain)
 }
 
-/// Parses a friction model: `cone`, `pyramid` (4 facets) or `pyramidN` (3 ≤ N ≤
-/// [`crate::constraints::MAX_PYRAMID_FACETS`] facets).
+/// Parses a friction model: `cone`, `pyramid` (4 facets) or `pyramidN` (N facets, 3 ≤ N ≤
+/// [`crate::constraints::MAX_PYRAMID_FACETS`]), as in `[world] friction` and on the command line.
+///
+/// `pyramidN` follows the solver chain's `pgsN` and the integrators' `gbsN`; `pyramid:N` is read
+/// with the same meaning, as it is the form `meta.json` files record
+/// ([`crate::io::problem::ProblemMeta::friction`]).
 pub fn parse_friction(text: &str) -> Result<FrictionModel, String> {
-    let bad = || {
-        format!(
-            "unknown friction model `{text}` (known: cone, pyramid, pyramidN with 3 <= N <= {})",
-            crate::constraints::MAX_PYRAMID_FACETS
-        )
-    };
-    match text {
-        "cone" => Ok(FrictionModel::Cone),
-        "pyramid" => Ok(FrictionModel::Pyramid { facets: 4 }),
-        other => {
-            let facets: usize = other.strip_prefix("pyramid").and_then(|n| n.parse().ok()).ok_or_else(bad)?;
-            if !(3..=crate::constraints::MAX_PYRAMID_FACETS).contains(&facets) {
-                return Err(bad());
-            }
-            Ok(FrictionModel::Pyramid { facets })
+    let max = crate::constraints::MAX_PYRAMID_FACETS;
+    if text == "cone" {
+        return Ok(FrictionModel::Cone);
+    }
+    if text == "pyramid" {
+        return Ok(FrictionModel::Pyramid { facets: 4 });
+    }
+    let count = text.strip_prefix("pyramid").map(|n| n.strip_prefix(':').unwrap_or(n));
+    match count.map(str::parse::<usize>) {
+        Some(Ok(facets)) if (3..=max).contains(&facets) => Ok(FrictionModel::Pyramid { facets }),
+        Some(Ok(_)) => Err(format!("friction model `{text}`: a pyramid needs 3 <= N <= {max} facets")),
+        _ => Err(format!(
+            "unknown friction model `{text}` (known: cone, pyramid (4 facets), pyramidN with 3 <= N <= {max} facets; pyramid:N is pyramidN)"
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn friction_models_parse_in_both_spellings_with_the_same_meaning() {
+        assert_eq!(parse_friction("cone"), Ok(FrictionModel::Cone));
+        assert_eq!(parse_friction("pyramid"), Ok(FrictionModel::Pyramid { facets: 4 }));
+        for facets in [3, 6, crate::constraints::MAX_PYRAMID_FACETS] {
+            let model = Ok(FrictionModel::Pyramid { facets });
+            assert_eq!(parse_friction(&format!("pyramid{facets}")), model);
+            assert_eq!(parse_friction(&format!("pyramid:{facets}")), model);
+        }
+        for out_of_range in ["pyramid2", "pyramid:2", "pyramid65", "pyramid:0"] {
+            let message = parse_friction(out_of_range).unwrap_err();
+            assert!(message.contains(out_of_range) && message.contains("3 <= N <= 64 facets"), "{message}");
+        }
+        for unknown in ["", "Cone", "pyramid:", "pyramid:x", "pyramids", "pyramid::4", "cone:4"] {
+            let message = parse_friction(unknown).unwrap_err();
+            assert!(message.starts_with("unknown friction model"), "{unknown}: {message}");
         }
     }
 }
