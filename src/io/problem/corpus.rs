@@ -97,6 +97,23 @@ pub enum SolveStatus {
     Failed,
 }
 
+impl SolveStatus {
+    /// Its name as files and the command line write it: `solved`, `inaccurate`, `failed`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolveStatus::Solved => "solved",
+            SolveStatus::Inaccurate => "inaccurate",
+            SolveStatus::Failed => "failed",
+        }
+    }
+}
+
+impl std::fmt::Display for SolveStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// [`Residuals`] as written to files (m/s; `qp_*` only for frictionless problems).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ResidualRecord {
@@ -248,7 +265,8 @@ pub struct ProblemMeta {
     pub h: f64,
     /// [`formulation`].
     pub formulation: String,
-    /// Friction model (`cone` or `pyramid:K`).
+    /// Friction model: `cone` or `pyramid:K` (K facets), as [`crate::io::scene::parse_friction`]
+    /// reads it.
     pub friction: String,
     /// Rows.
     pub rows: usize,

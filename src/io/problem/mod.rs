@@ -18,20 +18,25 @@
 //! `numpy.load` reads.
 //!
 //! One private module per file kind: `json` (problem.json), `cone` (cone.json and the QP form),
-//! `npz` (lcp.npz, qp.npz), `corpus` (re-solving and meta.json).
+//! `npz` (lcp.npz, qp.npz), `corpus` (re-solving and meta.json); `resolve` judges a re-solved
+//! problem against its meta.json, and `export` writes the problems of a scene's steps.
 
 mod cone;
 mod corpus;
+mod export;
 mod json;
 mod npz;
+mod resolve;
 
 pub use cone::{clarabel_settings, cone_json, qp_of, QpForm};
 pub use corpus::{
     formulation, is_frictionless, objective, run_solver, CorpusSolver, ProblemMeta, ResidualRecord,
     SolveStatus, SolverRecord,
 };
+pub use export::{export_problems, ExportError, ExportKind, ExportOptions, ExportedProblem};
 pub use json::{problem_from_json, problem_to_json, validate_problem};
 pub use npz::{lcp_facets, lcp_npz, npy_bytes, npz_bytes, qp_npz, stored_zip};
+pub use resolve::{resolve_problem, Regression, Resolved};
 
 use crate::constraints::ConstraintProblem;
 use std::path::{Path, PathBuf};
