@@ -155,7 +155,8 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-/// What a run did.
+/// What a run did. It serializes (serde) to what `gelenk simulate --json` prints: every field but
+/// the recording, which [`Recording::save`] writes.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct RunSummary {
     /// Scene name.
