@@ -7,7 +7,7 @@ mod ground;
 
 use super::schema::{Document, VehicleSection};
 use super::source::Source;
-use super::values::{Finite, MaterialRef, V3};
+use super::values::{Count, Finite, MaterialRef, NonNegative, V3};
 use super::{Location, RecordOptions, Scene, SceneError, ScriptedVehicle, TimedCommand, INTEGRATORS};
 use crate::constraints::{ContactParameters, JointLimitParameters};
 use crate::math::{Transform, Vec3};
@@ -259,6 +259,78 @@ impl Builder<'_> {
         // Stable: commands given for the same time apply in the order written.
         commands.sort_by(|a, b| a.at.total_cmp(&b.at));
         Ok(ScriptedVehicle { vehicle, commands, applied: 0 })
+    }
+}
+
+/// Where the copies of a `[[body]]` or `[[urdf]]` entry go: `count = n` copies in a row at
+/// `k·spacing`, or `count = [nx, ny, nz]` in a grid at `(i·sx, j·sy, k·sz)`, each moved by up to
+/// `jitter` m per axis (drawn by the caller, whose random sequence this leaves alone).
+pub(super) struct Copies {
+    /// Copies along x, y, z (a row: `[n, 1, 1]`).
+    dims: [usize; 3],
+    /// `count` was a grid.
+    grid: bool,
+    /// `spacing` (m): between neighbours in a row, per axis in a grid.
+    spacing: Vec3,
+    /// `jitter` (m).
+    pub(super) jitter: f64,
+}
+
+impl Copies {
+    /// The copies an entry asks for; an error message when several lack a `spacing` or would lie
+    /// on each other.
+    pub(super) fn new(
+        count: Option<Count>,
+        spacing: Option<V3>,
+        jitter: Option<NonNegative>,
+    ) -> Result<Self, String> {
+        let (dims, grid) = match count {
+            None => ([1, 1, 1], false),
+            Some(Count::Row(n)) => ([n, 1, 1], false),
+            Some(Count::Grid(d)) => (d, true),
+        };
+        let total = dims[0] * dims[1] * dims[2];
+        let spacing = match (spacing, total) {
+            (Some(s), _) => s.0,
+            (None, 1) => Vec3::zeros(),
+            (None, _) => return Err(format!("{total} copies need `spacing`")),
+        };
+        let jitter = jitter.map_or(0.0, |x| x.0);
+        if copies_coincide(dims, grid, &spacing, jitter) {
+            return Err(format!(
+                "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
+                spacing.as_slice()
+            ));
+        }
+        Ok(Self { dims, grid, spacing, jitter })
+    }
+
+    /// The copies' grid cells `(i, j, k)`, i fastest (a row is `(i, 0, 0)`).
+    pub(super) fn cells(&self) -> impl Iterator<Item = [usize; 3]> {
+        let [nx, ny, nz] = self.dims;
+        (0..nz).flat_map(move |k| (0..ny).flat_map(move |j| (0..nx).map(move |i| [i, j, k])))
+    }
+
+    /// The name of the copy in `cell`: `base` for a single copy, `{base}{i}` in a row,
+    /// `{base}_{i}_{j}_{k}` in a grid.
+    pub(super) fn name(&self, base: &str, [i, j, k]: [usize; 3]) -> String {
+        if self.dims == [1, 1, 1] {
+            base.to_string()
+        } else if self.grid {
+            format!("{base}_{i}_{j}_{k}")
+        } else {
+            format!("{base}{i}")
+        }
+    }
+
+    /// The offset (m) of the copy in `cell` from the entry's position, before jitter.
+    pub(super) fn offset(&self, [i, j, k]: [usize; 3]) -> Vec3 {
+        let s = &self.spacing;
+        if self.grid {
+            Vec3::new(i as f64 * s.x, j as f64 * s.y, k as f64 * s.z)
+        } else {
+            i as f64 * s
+        }
     }
 }
 

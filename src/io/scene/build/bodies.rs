@@ -1,10 +1,10 @@
 //! `[[urdf]]` and `[[body]]` entries: models and primitive bodies placed in the world, with their
 //! copies (`count`, `spacing`, `jitter`), initial state, servos and materials.
 
-use super::{copies_coincide, pose, Builder};
+use super::{pose, Builder, Copies};
 use crate::collision::{MeshOptions, MissingMeshPolicy};
 use crate::io::scene::schema::{BodySection, MissingMeshes, ShapeName, UrdfSection};
-use crate::io::scene::values::{Count, Positive, V3};
+use crate::io::scene::values::{Positive, V3};
 use crate::io::scene::SceneError;
 use crate::io::urdf::{self, UrdfOptions};
 use crate::math::{Transform, Vec3};
@@ -130,109 +130,76 @@ impl Builder<'_> {
         };
 
         // Copies, placed as `[[body]]` copies are.
-        let (dims, grid) = match u.count {
-            None => ([1, 1, 1], false),
-            Some(Count::Row(n)) => ([n, 1, 1], false),
-            Some(Count::Grid(d)) => (d, true),
-        };
-        let total = dims[0] * dims[1] * dims[2];
-        let spacing = match (u.spacing, total) {
-            (Some(s), _) => s.0,
-            (None, 1) => Vec3::zeros(),
-            (None, _) => return Err(err(format!("{total} copies need `spacing`"))),
-        };
-        let jitter = u.jitter.map_or(0.0, |x| x.0);
-        if copies_coincide(dims, grid, &spacing, jitter) {
-            return Err(err(format!(
-                "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
-                spacing.as_slice()
-            )));
-        }
+        let copies = Copies::new(u.count, u.spacing, u.jitter).map_err(err)?;
         let mut rng = rand::rngs::StdRng::seed_from_u64(u.seed.unwrap_or(0));
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let name = if total == 1 {
-                        base_name.clone()
-                    } else if grid {
-                        format!("{base_name}_{i}_{j}_{k}")
-                    } else {
-                        format!("{base_name}{i}")
-                    };
-                    self.claim_name(&name, span.clone())?;
-                    let offset = if grid {
-                        Vec3::new(i as f64 * spacing.x, j as f64 * spacing.y, k as f64 * spacing.z)
-                    } else {
-                        i as f64 * spacing
-                    };
-                    let mut x = placement;
-                    if jitter > 0.0 {
-                        x.translation += Vec3::from_fn(|_, _| rng.random_range(-jitter..=jitter));
+        for cell in copies.cells() {
+            let name = copies.name(&base_name, cell);
+            self.claim_name(&name, span.clone())?;
+            let offset = copies.offset(cell);
+            let mut x = placement;
+            if copies.jitter > 0.0 {
+                let jitter = copies.jitter;
+                x.translation += Vec3::from_fn(|_, _| rng.random_range(-jitter..=jitter));
+            }
+            x.translation += offset;
+            if u.random_rotation {
+                let turn = crate::model::joint::uniform_quaternion(&mut rng);
+                let r = Transform::from_translation_quaternion(Vec3::zeros(), turn);
+                x.rotation = r.rotation * x.rotation;
+            }
+            let mut angular = u.angular_velocity.map_or(Vec3::zeros(), |w| w.0);
+            if let Some(spin) = u.spin {
+                let axis = loop {
+                    let a = Vec3::from_fn(|_, _| rng.random_range(-1.0..=1.0));
+                    if a.norm() > 0.1 && a.norm() <= 1.0 {
+                        break a.normalize();
                     }
-                    x.translation += offset;
-                    if u.random_rotation {
-                        let turn = crate::model::joint::uniform_quaternion(&mut rng);
-                        let r = Transform::from_translation_quaternion(Vec3::zeros(), turn);
-                        x.rotation = r.rotation * x.rotation;
-                    }
-                    let mut angular = u.angular_velocity.map_or(Vec3::zeros(), |w| w.0);
-                    if let Some(spin) = u.spin {
-                        let axis = loop {
-                            let a = Vec3::from_fn(|_, _| rng.random_range(-1.0..=1.0));
-                            if a.norm() > 0.1 && a.norm() <= 1.0 {
-                                break a.normalize();
-                            }
-                        };
-                        angular += axis * spin.0;
-                    }
-                    let mut model = model.clone();
-                    let (mut q, mut v) = (q.clone(), v.clone());
-                    if let Some(root) = root.filter(|_| u.floating) {
-                        set_free_joint(&model, root, &x, u.velocity, Some(V3(angular)), &mut q, &mut v);
-                    } else {
-                        place_fixed_base(&mut model, &x);
-                    }
-                    let pose_servo = u.pose_servo.as_ref().map(|s| {
-                        PoseServo::scaled_by_subtree_mass(
-                            &model,
-                            q.clone(),
-                            s.gain.0,
-                            s.max_velocity.0,
-                            s.torque_per_kg.0,
-                        )
-                    });
-                    let index = world
-                        .add_multibody(&name, model, &meshes)
-                        .map_err(self.world_error(u.path.span()))?;
-                    world
-                        .set_self_collision(index, u.self_collision)
-                        .map_err(self.world_error(span.clone()))?;
-                    for c in world.collision().colliders_of(index).to_vec() {
-                        world.collision_mut().set_material(c, material);
-                    }
-                    let mb = world.multibody_mut(index);
-                    mb.state.q = q;
-                    mb.state.v = v;
-                    if let Some(s) = &u.servo {
-                        for &(k, target) in &servo_dofs {
-                            mb.set_servo(
-                                k,
-                                Some(Servo {
-                                    target_position: target,
-                                    gain: s.gain.0,
-                                    max_velocity: s.max_velocity.0,
-                                    max_force: s.max_force.0,
-                                }),
-                            );
-                        }
-                    }
-                    if let Some(servo) = pose_servo {
-                        mb.set_pose_servo(Some(servo)).map_err(|source| SceneError::Model {
-                            at: self.src.location(span.clone()),
-                            source: Box::new(source),
-                        })?;
-                    }
+                };
+                angular += axis * spin.0;
+            }
+            let mut model = model.clone();
+            let (mut q, mut v) = (q.clone(), v.clone());
+            if let Some(root) = root.filter(|_| u.floating) {
+                set_free_joint(&model, root, &x, u.velocity, Some(V3(angular)), &mut q, &mut v);
+            } else {
+                place_fixed_base(&mut model, &x);
+            }
+            let pose_servo = u.pose_servo.as_ref().map(|s| {
+                PoseServo::scaled_by_subtree_mass(
+                    &model,
+                    q.clone(),
+                    s.gain.0,
+                    s.max_velocity.0,
+                    s.torque_per_kg.0,
+                )
+            });
+            let index =
+                world.add_multibody(&name, model, &meshes).map_err(self.world_error(u.path.span()))?;
+            world.set_self_collision(index, u.self_collision).map_err(self.world_error(span.clone()))?;
+            for c in world.collision().colliders_of(index).to_vec() {
+                world.collision_mut().set_material(c, material);
+            }
+            let mb = world.multibody_mut(index);
+            mb.state.q = q;
+            mb.state.v = v;
+            if let Some(s) = &u.servo {
+                for &(k, target) in &servo_dofs {
+                    mb.set_servo(
+                        k,
+                        Some(Servo {
+                            target_position: target,
+                            gain: s.gain.0,
+                            max_velocity: s.max_velocity.0,
+                            max_force: s.max_force.0,
+                        }),
+                    );
                 }
+            }
+            if let Some(servo) = pose_servo {
+                mb.set_pose_servo(Some(servo)).map_err(|source| SceneError::Model {
+                    at: self.src.location(span.clone()),
+                    source: Box::new(source),
+                })?;
             }
         }
         Ok(())
@@ -303,24 +270,7 @@ impl Builder<'_> {
         }
 
         // Copies.
-        let (dims, grid) = match b.count {
-            None => ([1, 1, 1], false),
-            Some(Count::Row(n)) => ([n, 1, 1], false),
-            Some(Count::Grid(d)) => (d, true),
-        };
-        let total = dims[0] * dims[1] * dims[2];
-        let spacing = match (b.spacing, total) {
-            (Some(s), _) => s.0,
-            (None, 1) => Vec3::zeros(),
-            (None, _) => return Err(err(format!("{total} copies need `spacing`"))),
-        };
-        let jitter = b.jitter.map_or(0.0, |x| x.0);
-        if copies_coincide(dims, grid, &spacing, jitter) {
-            return Err(err(format!(
-                "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
-                spacing.as_slice()
-            )));
-        }
+        let copies = Copies::new(b.count, b.spacing, b.jitter).map_err(err)?;
         let mut rng = rand::rngs::StdRng::seed_from_u64(b.seed.unwrap_or(0));
         let base = b.name.clone().unwrap_or_else(|| format!("body{index}"));
 
@@ -337,50 +287,35 @@ impl Builder<'_> {
                 source: Box::new(source),
             })?)
         };
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                for i in 0..dims[0] {
-                    let name = if total == 1 {
-                        base.clone()
-                    } else if grid {
-                        format!("{base}_{i}_{j}_{k}")
-                    } else {
-                        format!("{base}{i}")
-                    };
-                    self.claim_name(&name, span.clone())?;
-                    let offset = if grid {
-                        Vec3::new(i as f64 * spacing.x, j as f64 * spacing.y, k as f64 * spacing.z)
-                    } else {
-                        i as f64 * spacing
-                    };
-                    let mut noise = Vec3::zeros();
-                    if jitter > 0.0 {
-                        noise = Vec3::from_fn(|_, _| rng.random_range(-jitter..=jitter));
+        for cell in copies.cells() {
+            let name = copies.name(&base, cell);
+            self.claim_name(&name, span.clone())?;
+            let offset = copies.offset(cell);
+            let mut noise = Vec3::zeros();
+            if copies.jitter > 0.0 {
+                let jitter = copies.jitter;
+                noise = Vec3::from_fn(|_, _| rng.random_range(-jitter..=jitter));
+            }
+            let mut x = orientation;
+            x.translation += offset + noise;
+            match &model {
+                None => {
+                    world.add_static(&name, &shape, x, material).map_err(self.world_error(span.clone()))?;
+                }
+                Some(model) => {
+                    let mut model = model.clone();
+                    model.name = name.clone();
+                    let index = world
+                        .add_multibody(&name, model, &MeshOptions::default())
+                        .map_err(self.world_error(span.clone()))?;
+                    for c in world.collision().colliders_of(index).to_vec() {
+                        world.collision_mut().set_material(c, material);
                     }
-                    let mut x = orientation;
-                    x.translation += offset + noise;
-                    match &model {
-                        None => {
-                            world
-                                .add_static(&name, &shape, x, material)
-                                .map_err(self.world_error(span.clone()))?;
-                        }
-                        Some(model) => {
-                            let mut model = model.clone();
-                            model.name = name.clone();
-                            let index = world
-                                .add_multibody(&name, model, &MeshOptions::default())
-                                .map_err(self.world_error(span.clone()))?;
-                            for c in world.collision().colliders_of(index).to_vec() {
-                                world.collision_mut().set_material(c, material);
-                            }
-                            let mb = world.multibody_mut(index);
-                            let (mut q, mut v) = (mb.state.q.clone(), mb.state.v.clone());
-                            set_free_joint(mb.model(), 1, &x, b.velocity, b.angular_velocity, &mut q, &mut v);
-                            mb.state.q = q;
-                            mb.state.v = v;
-                        }
-                    }
+                    let mb = world.multibody_mut(index);
+                    let (mut q, mut v) = (mb.state.q.clone(), mb.state.v.clone());
+                    set_free_joint(mb.model(), 1, &x, b.velocity, b.angular_velocity, &mut q, &mut v);
+                    mb.state.q = q;
+                    mb.state.v = v;
                 }
             }
         }
