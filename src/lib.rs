@@ -43,7 +43,8 @@
 //! | `plot` | `plot`: plotters with DejaVu Sans embedded |
 //! | `render` | `render`: filmstrips of scenes as PNG images (needs `plot`) |
 //! | `report` | `report`: the stability and speed-error reports (needs `plot`) |
-//! | `cli` | the `gelenk` command-line tool (clap; needs `render` and `report`) |
+//! | `viewer` | `viz`: runs as binary glTF and as a self-contained HTML player (three.js) |
+//! | `cli` | the `gelenk` command-line tool (clap; needs `render`, `report` and `viewer`) |
 #![warn(missing_docs)]
 
 pub mod algorithms;
@@ -66,6 +67,8 @@ pub mod scenes;
 pub mod solvers;
 pub mod state;
 pub mod vehicle;
+#[cfg(feature = "viewer")]
+pub mod viz;
 pub mod world;
 
 /// The README's examples are compiled and run as doctests.

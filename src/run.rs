@@ -2,6 +2,7 @@
 //! before each step, records a trajectory ([`Recording`], written as CSV or JSON) and sums the run
 //! up ([`RunSummary`]: steps per second, real-time factor, energy drift, penetration, solvers).
 //! Nothing here prints; the command line (`gelenk simulate`) shows what [`run`] returns.
+//! With [`RunOptions::record_frames`] the recording also holds what a viewer draws ([`Frame`]s).
 
 use crate::io::scene::{Scene, SceneError};
 use crate::model::Joint;
@@ -11,6 +12,9 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
+
+mod frames;
+pub use frames::{BodyPose, ContactSample, Frame, FramedBody};
 
 /// Options of [`run`]; `None` keeps the scene's value.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -25,6 +29,9 @@ pub struct RunOptions {
     pub solvers: Option<Vec<SolverKind>>,
     /// Record one row every this many steps instead of `[record] every`; 0 records nothing.
     pub record_every: Option<usize>,
+    /// Also record a [`Frame`] (body poses, contact points, energy) with every row, into
+    /// [`Recording::frames`], for the glTF export and the player (`crate::viz`).
+    pub record_frames: bool,
 }
 
 /// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
@@ -73,6 +80,13 @@ pub struct Recording {
     pub energy: bool,
     /// The rows.
     pub rows: Vec<RecordedStep>,
+    /// The bodies whose poses [`Recording::frames`] hold (empty unless
+    /// [`RunOptions::record_frames`]). Not written to CSV or JSON.
+    #[serde(skip)]
+    pub bodies: Vec<FramedBody>,
+    /// One frame per row (empty unless [`RunOptions::record_frames`]). Not written to CSV or JSON.
+    #[serde(skip)]
+    pub frames: Vec<Frame>,
 }
 
 impl Recording {
@@ -251,7 +265,14 @@ pub fn run(
         dt,
         columns: record_columns(scene),
         energy: scene.record.energy,
-        rows: Vec::new(),
+        ..Recording::default()
+    };
+    let mut frames = if options.record_frames {
+        let (recorder, bodies) = frames::FrameRecorder::new(&scene.world);
+        recording.bodies = bodies;
+        Some(recorder)
+    } else {
+        None
     };
     let mut summary = RunSummary { scene: scene.name.clone(), dt, ..RunSummary::default() };
     // The summary reports where the time went.
@@ -260,7 +281,7 @@ pub fn run(
     let mut iterations = 0u64;
     let start = Instant::now();
     if every > 0 {
-        record_row(scene, 0, &mut recording);
+        record_row(scene, 0, &mut recording, frames.as_mut());
     }
     let mut reported = 0u64;
     for step in 1..=steps {
@@ -282,7 +303,7 @@ pub fn run(
             iterations += stats.iterations as u64;
         }
         if every > 0 && (step % every == 0 || step == steps) {
-            record_row(scene, step, &mut recording);
+            record_row(scene, step, &mut recording, frames.as_mut());
         }
         let percent = step * 100 / steps;
         if percent > reported {
@@ -307,8 +328,18 @@ pub fn run(
     Ok(summary)
 }
 
-fn record_row(scene: &mut Scene, step: u64, recording: &mut Recording) {
-    let energy = if scene.record.energy { Some(scene.world.total_energy()) } else { None };
+fn record_row(
+    scene: &mut Scene,
+    step: u64,
+    recording: &mut Recording,
+    frames: Option<&mut frames::FrameRecorder>,
+) {
+    let total = (scene.record.energy || frames.is_some()).then(|| scene.world.total_energy());
+    if let (Some(recorder), Some(total)) = (frames, total) {
+        let frame = recorder.capture(&scene.world, &recording.bodies, total);
+        recording.frames.push(frame);
+    }
+    let energy = if scene.record.energy { total } else { None };
     let mut values = Vec::with_capacity(recording.columns.len());
     for &i in &scene.recorded {
         let state = &scene.world.multibody(i).state;

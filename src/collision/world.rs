@@ -111,6 +111,12 @@ impl Collider {
     pub(crate) fn parry_shape(&self) -> (&SharedShape, &Pose) {
         (&self.shape, &self.world_pose)
     }
+    /// parry's shape and the pose of parry's shape frame in the body frame (in the world frame for
+    /// static geometry), for drawing ([`crate::viz`]).
+    #[cfg(feature = "viewer")]
+    pub(crate) fn parry_local(&self) -> (&SharedShape, &Transform) {
+        (&self.shape, &self.local)
+    }
     /// World axis-aligned bounding box (m), as of the last update, margin not included.
     pub fn aabb(&self) -> ([f64; 3], [f64; 3]) {
         (self.aabb.mins.to_array(), self.aabb.maxs.to_array())

@@ -1,5 +1,5 @@
 //! The `gelenk` command-line tool: inspect a model, evaluate its dynamics on given states, run,
-//! render and benchmark scenes, export and re-solve constraint problems, and write the reports.
+//! render, view and benchmark scenes, export and re-solve constraint problems, and write the reports.
 //! It parses arguments and prints; the work is the library's. Each command lives in its own
 //! module beside this file. Errors are printed as one line on stderr with a non-zero exit.
 
@@ -9,6 +9,7 @@ mod inspect;
 mod problems;
 mod report;
 mod simulate;
+mod view;
 
 use clap::{Parser, Subcommand};
 use gelenk::prelude::*;
@@ -48,6 +49,10 @@ enum Command {
     /// Run a scene and draw a filmstrip (side x–z and top x–y views of every collider, FRAMES
     /// instants from 0 to T) with plots of centre-of-mass height, speed and energy, as a PNG.
     Render(simulate::RenderArgs),
+    /// Run a scene file and write a player: one self-contained HTML page (three.js and the run
+    /// embedded; opens offline) with play/pause, time slider, speed, orbiting camera, contact
+    /// overlay and energy and penetration plots.
+    View(view::ViewArgs),
     /// Time algorithms in-process (median over rounds, after warm-up).
     Bench {
         #[command(subcommand)]
@@ -72,6 +77,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => simulate::simulate(&args),
         Command::Report { what } => report::run(what),
         Command::Render(args) => simulate::render(&args),
+        Command::View(args) => view::run(&args),
         Command::Bench { what } => bench::run(what),
     };
     match result {

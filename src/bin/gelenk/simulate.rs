@@ -1,5 +1,5 @@
-//! `gelenk simulate` (run a scene file, print its summary, record its states) and `gelenk
-//! render` (a filmstrip of a scene as a PNG).
+//! `gelenk simulate` (run a scene file, print its summary, record its states, export it as
+//! glTF) and `gelenk render` (a filmstrip of a scene as a PNG).
 
 use gelenk::io::scene;
 use std::io::{IsTerminal, Write};
@@ -22,6 +22,10 @@ pub struct SimulateArgs {
     /// Write the recorded states to FILE.csv or FILE.json.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Write the run as binary glTF to FILE.glb: the bodies' collision shapes and their motion,
+    /// at the scene's recording rate.
+    #[arg(long, value_name = "FILE")]
+    gltf: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
@@ -48,20 +52,23 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
     let mut loaded = scene::load_file(&args.scene).map_err(|e| e.to_string())?;
     let solvers =
         args.solver.as_deref().map(scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
-    let record_every = if args.out.is_some() { None } else { Some(0) };
-    let options = scene::RunOptions { duration: args.duration, dt: args.dt, solvers, record_every };
+    // Created before the run: a path that cannot be written fails now, not after it.
+    let glb = args
+        .gltf
+        .as_deref()
+        .map(|path| gelenk::viz::OutputFile::create(path, "glb"))
+        .transpose()
+        .map_err(|e| e.to_string())?;
+    let record_every = if args.out.is_some() || glb.is_some() { None } else { Some(0) };
+    let options = scene::RunOptions {
+        duration: args.duration,
+        dt: args.dt,
+        solvers,
+        record_every,
+        record_frames: glb.is_some(),
+    };
     let terminal = std::io::stderr().is_terminal();
-    let mut shown = -1i64;
-    let summary = scene::run(&mut loaded, &options, |fraction| {
-        let percent = (fraction * 100.0).floor() as i64;
-        if terminal && percent != shown {
-            shown = percent;
-            let filled = (percent / 2) as usize;
-            eprint!("\r[{}{}] {percent:3}%", "#".repeat(filled), " ".repeat(50 - filled.min(50)));
-            let _ = std::io::stderr().flush();
-        }
-    })
-    .map_err(|e| e.to_string())?;
+    let summary = scene::run(&mut loaded, &options, progress_bar(terminal)).map_err(|e| e.to_string())?;
     if terminal {
         eprintln!();
     }
@@ -70,6 +77,10 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
     }
     if let Some(out) = &args.out {
         summary.recording.save(out).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+    }
+    if let Some(glb) = glb {
+        let bytes = gelenk::viz::gltf::glb_bytes(&loaded.world, &summary.recording).map_err(|e| e.to_string())?;
+        glb.commit(&bytes).map_err(|e| e.to_string())?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
@@ -104,6 +115,20 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// A progress bar on stderr when it is a terminal (`terminal`), for [`scene::run`].
+pub fn progress_bar(terminal: bool) -> impl FnMut(f64) {
+    let mut shown = -1i64;
+    move |fraction| {
+        let percent = (fraction * 100.0).floor() as i64;
+        if terminal && percent != shown {
+            shown = percent;
+            let filled = (percent / 2) as usize;
+            eprint!("\r[{}{}] {percent:3}%", "#".repeat(filled), " ".repeat(50 - filled.min(50)));
+            let _ = std::io::stderr().flush();
+        }
+    }
 }
 
 /// Runs `gelenk render`.
