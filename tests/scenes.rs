@@ -459,6 +459,7 @@ fn run_options_override_dt_and_solver_before_the_first_step() {
         dt: Some(0.002),
         solvers: Some(scene::parse_solvers("lemke").unwrap()),
         record_every: Some(0),
+        ..RunOptions::default()
     };
     let summary = scene::run(&mut s, &options, |_| {}).unwrap();
     assert_eq!(summary.steps, 300);

@@ -85,7 +85,10 @@ fn shapes_scene() -> Scene {
         ],
         triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]],
     };
-    loaded.world.add_static("wedge", &wedge, Transform::from_translation(Vec3::new(-3.0, 0.0, 0.0)), 0).unwrap();
+    loaded
+        .world
+        .add_static("wedge", &wedge, Transform::from_translation(Vec3::new(-3.0, 0.0, 0.0)), 0)
+        .unwrap();
     loaded
 }
 
@@ -119,7 +122,10 @@ fn the_glb_reads_back_with_every_body_shape_and_its_recorded_motion() {
     assert_eq!(roots[0].name(), Some(gelenk::viz::gltf::ROOT_NODE));
     let children: Vec<_> = roots[0].children().collect();
     let child_names: Vec<&str> = children.iter().filter_map(|n| n.name()).collect();
-    assert_eq!(child_names, ["ground0", "bumps", "wedge", "box0/box", "box1/box", "ball/ball", "pill/pill", "can/can"]);
+    assert_eq!(
+        child_names,
+        ["ground0", "bumps", "wedge", "box0/box", "box1/box", "ball/ball", "pill/pill", "can/can"]
+    );
     // A primitive per collider: box0 carries its box and the hull.
     let primitives = |name: &str| {
         children.iter().find(|n| n.name() == Some(name)).unwrap().mesh().unwrap().primitives().count()
@@ -242,8 +248,10 @@ fn gelenk(args: &[&str], dir: &Path) -> std::process::Output {
 }
 
 fn files_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> =
-        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     names.sort();
     names
 }
@@ -331,7 +339,10 @@ fn khronos_validator() -> Result<PathBuf, String> {
             .output()
             .map_err(|e| format!("npm: {e}"))?;
         if !out.status.success() {
-            return Err(format!("npm install gltf-validator failed: {}", String::from_utf8_lossy(&out.stderr).trim()));
+            return Err(format!(
+                "npm install gltf-validator failed: {}",
+                String::from_utf8_lossy(&out.stderr).trim()
+            ));
         }
     }
     Ok(package)

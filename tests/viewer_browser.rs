@@ -22,9 +22,13 @@ fn magenta(p: [u8; 4]) -> bool {
     p[0] > 200 && p[1] < 80 && p[2] > 200
 }
 
-fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str) {
+/// Checks the player of `scene_file` run for `duration` s, following `body`; `doc` names the
+/// picture for docs/, taken with the contact overlay when `doc_contacts`.
+fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_contacts: bool) {
     let Some(browser) = chromium::find() else {
-        println!("skipped: Chromium is not installed (Debian: apt-get install chromium; .ci/run installs it)");
+        println!(
+            "skipped: Chromium is not installed (Debian: apt-get install chromium; .ci/run installs it)"
+        );
         return;
     };
     let repo = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -39,8 +43,10 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str) {
 
     // The body's first collider's centre, in the body frame.
     let b = recording.bodies.iter().position(|x| x.name == body).unwrap();
-    let attachment = Attachment::Body { multibody: recording.bodies[b].multibody, body: recording.bodies[b].body };
-    let collider = loaded.world.collision().colliders().iter().find(|c| c.attachment() == attachment).unwrap();
+    let attachment =
+        Attachment::Body { multibody: recording.bodies[b].multibody, body: recording.bodies[b].body };
+    let collider =
+        loaded.world.collision().colliders().iter().find(|c| c.attachment() == attachment).unwrap();
     let centre_in_body = collider.placement().translation;
 
     let mut page = chromium::Page::open(&browser, &dir.join("profile"), WIDTH, HEIGHT);
@@ -59,14 +65,16 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str) {
         assert!(error < 1e-4, "{body} at t = {t}: drawn at {drawn:?}, recorded at {:?}", pose.translation);
 
         // And the screenshot shows it there.
-        let centre = Transform::from_translation_quaternion(pose.translation, pose.rotation).act_point(&centre_in_body);
+        let centre = Transform::from_translation_quaternion(pose.translation, pose.rotation)
+            .act_point(&centre_in_body);
         let projected = page.eval(&format!("gelenkPlayer.project({}, {}, {})", centre.x, centre.y, centre.z));
         let (px, py) = (projected["x"].as_f64().unwrap(), projected["y"].as_f64().unwrap());
         assert_eq!(page.eval(&format!("gelenkPlayer.highlight('{body}')")), true);
         let (image, _) = page.screenshot();
         assert_eq!((image.width, image.height), (WIDTH, HEIGHT));
         let region = image.region(magenta).unwrap_or_else(|| panic!("{body} is not drawn at t = {t}"));
-        let size = 0.5 * ((region.bounds.2 - region.bounds.0) as f64 + (region.bounds.3 - region.bounds.1) as f64);
+        let size =
+            0.5 * ((region.bounds.2 - region.bounds.0) as f64 + (region.bounds.3 - region.bounds.1) as f64);
         let tolerance = 3.0 + 0.1 * size;
         let (cx, cy) = region.centroid;
         assert!(
@@ -75,19 +83,22 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str) {
         );
         page.eval("gelenkPlayer.highlight(null)");
 
-        // The contact overlay draws the recorded contacts; the picture is not empty.
-        let drawn_contacts = page.eval("gelenkPlayer.showContacts(true); gelenkPlayer.overlayCount()");
-        assert_eq!(drawn_contacts, recording.frames[k].contacts.len(), "t = {t}");
+        // The picture is not empty; the contact overlay draws the recorded contacts.
         let (image, png) = page.screenshot();
         assert!(image.region(magenta).is_none(), "the highlight stayed");
         let background = image.pixel(WIDTH / 2, 2);
         let drawn = image.region(|p| p.iter().zip(&background).any(|(a, b)| a.abs_diff(*b) > 12)).unwrap();
         assert!(drawn.pixels > (WIDTH * HEIGHT / 20) as u64, "t = {t}: only {} pixels drawn", drawn.pixels);
-        std::fs::write(dir.join(format!("t{i}.png")), &png).unwrap();
-        if k == n - 1 && std::env::var_os("GELENK_WRITE_DOCS").is_some() {
-            std::fs::write(repo.join("docs").join(doc), &png).unwrap();
-        }
+        let drawn_contacts = page.eval("gelenkPlayer.showContacts(true); gelenkPlayer.overlayCount()");
+        assert_eq!(drawn_contacts, recording.frames[k].contacts.len(), "t = {t}");
+        let (_, png_contacts) = page.screenshot();
         page.eval("gelenkPlayer.showContacts(false); true");
+        std::fs::write(dir.join(format!("t{i}.png")), &png).unwrap();
+        std::fs::write(dir.join(format!("t{i}_contacts.png")), &png_contacts).unwrap();
+        if k == n - 1 && std::env::var_os("GELENK_WRITE_DOCS").is_some() {
+            std::fs::write(repo.join("docs").join(doc), if doc_contacts { &png_contacts } else { &png })
+                .unwrap();
+        }
     }
     let errors = page.errors();
     assert!(errors.is_empty(), "console errors: {errors:#?}");
@@ -96,10 +107,10 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str) {
 
 #[test]
 fn the_ragdoll_pile_is_drawn_where_it_was_recorded() {
-    check_player("ragdoll_pile.toml", 3.0, "ragdoll19/head", "player_ragdoll_pile.png");
+    check_player("ragdoll_pile.toml", 3.0, "ragdoll19/head", "player_ragdoll_pile.png", false);
 }
 
 #[test]
 fn the_buggy_on_terrain_is_drawn_where_it_was_recorded() {
-    check_player("buggy_terrain.toml", 10.0, "buggy/chassis", "player_buggy_terrain.png");
+    check_player("buggy_terrain.toml", 10.0, "buggy/chassis", "player_buggy_terrain.png", true);
 }

@@ -179,22 +179,44 @@ function resize() {
   render();
 }
 
-// Points the camera, along its current direction, at the bodies as they are now, all in view.
+// Points the camera, along its current direction, at the bodies as they are now: their bounding
+// box fills about 80 % of the view.
 function fit() {
   const box = new THREE.Box3();
   for (const node of bodyNodes.values()) box.expandByObject(node);
-  const sphere = new THREE.Sphere();
-  if (box.isEmpty()) sphere.set(new THREE.Vector3(data.centre[0], data.centre[2], -data.centre[1]), 2);
-  else box.getBoundingSphere(sphere);
+  if (box.isEmpty()) {
+    const c = new THREE.Vector3(data.centre[0], data.centre[2], -data.centre[1]);
+    box.setFromCenterAndSize(c, new THREE.Vector3(4, 4, 4));
+  }
+  const sphere = box.getBoundingSphere(new THREE.Sphere());
   const radius = Math.max(sphere.radius, 0.3);
   const direction = camera.position.clone().sub(controls.target);
   if (direction.lengthSq() === 0) direction.set(0.55, 0.5, 1.0); // front right, above (x, z up, -y)
-  const fov = THREE.MathUtils.degToRad(camera.fov) / 2;
-  const reach = radius / Math.sin(Math.min(fov, Math.atan(Math.tan(fov) * camera.aspect)));
+  direction.normalize();
+  const corners = [];
+  for (let i = 0; i < 8; i++) {
+    corners.push(new THREE.Vector3(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z));
+  }
+  // The distance that contains the bounding sphere, then shortened (never into the sphere) until
+  // the box's corners reach 80 % of the view.
+  let distance = radius / Math.sin(THREE.MathUtils.degToRad(camera.fov) / 2) / Math.min(1, camera.aspect);
   controls.target.copy(sphere.center);
-  camera.position.copy(sphere.center).add(direction.setLength(1.15 * reach));
-  camera.near = Math.max(reach / 1000, 0.001);
-  camera.far = reach * 1000;
+  for (let pass = 0; pass < 4; pass++) {
+    camera.position.copy(sphere.center).addScaledVector(direction, distance);
+    camera.near = Math.max(distance / 1000, 0.001);
+    camera.far = distance * 1000;
+    camera.updateProjectionMatrix();
+    camera.lookAt(sphere.center);
+    camera.updateMatrixWorld();
+    const extent = Math.max(...corners.map((c) => {
+      const v = c.clone().project(camera);
+      return Math.max(Math.abs(v.x), Math.abs(v.y));
+    }));
+    distance = Math.max(distance * extent / 0.8, radius * 1.05);
+  }
+  camera.position.copy(sphere.center).addScaledVector(direction, distance);
+  camera.near = Math.max(distance / 1000, 0.001);
+  camera.far = distance * 1000;
   camera.updateProjectionMatrix();
   controls.update();
   lastCentre = bodiesCentre();

@@ -116,7 +116,6 @@ impl FrameRecorder {
 
 fn body_pose(x: &Transform) -> BodyPose {
     // A non-finite rotation matrix is never handed to the quaternion extraction (an iteration).
-    let rotation =
-        if x.rotation.iter().all(|r| r.is_finite()) { x.quaternion_xyzw() } else { [f64::NAN; 4] };
+    let rotation = if x.rotation.iter().all(|r| r.is_finite()) { x.quaternion_xyzw() } else { [f64::NAN; 4] };
     BodyPose { translation: x.translation, rotation }
 }

@@ -51,8 +51,9 @@ const PALETTE: [[f32; 3]; 8] = [
     [0.75, 0.15, 0.25],
     [0.45, 0.45, 0.50],
 ];
-/// Brightness of every other body of a multibody.
-const DARKER_SHADE: f32 = 0.6;
+/// Factor on the (linear) colour of every other body of a multibody, in the order of the
+/// recording's bodies.
+const DARKER_SHADE: f32 = 0.35;
 const STATIC_COLOUR: [f32; 3] = [0.42, 0.44, 0.40];
 
 /// The run as binary glTF (see the module's description). The recording must hold frames
@@ -96,12 +97,16 @@ pub fn glb_bytes(world: &World, recording: &Recording) -> Result<Vec<u8>, VizErr
     let mut materials = BTreeMap::new();
     let first = &recording.frames[0];
     let mut body_nodes = Vec::with_capacity(recording.bodies.len());
+    let mut rank = BTreeMap::new();
     for (k, body) in recording.bodies.iter().enumerate() {
-        // Neighbouring bodies of a multibody in two shades of its colour: the joints show.
-        let shade = if body.body % 2 == 1 { 1.0 } else { DARKER_SHADE };
+        // A multibody's bodies alternate between two shades of its colour: the joints show.
+        let next = rank.entry(body.multibody).or_insert(0usize);
+        let parity = *next % 2;
+        *next += 1;
+        let shade = if parity == 0 { 1.0 } else { DARKER_SHADE };
         let colour = PALETTE[body.multibody % PALETTE.len()].map(|c| c * shade);
-        let material = *materials.entry((body.multibody, body.body % 2)).or_insert_with(|| {
-            doc.material(&format!("{} {}", world.multibody_name(body.multibody), body.body % 2), colour, false)
+        let material = *materials.entry((body.multibody, parity)).or_insert_with(|| {
+            doc.material(&format!("{} {parity}", world.multibody_name(body.multibody)), colour, false)
         });
         let mesh = shapes
             .get(&(body.multibody, body.body))
@@ -173,10 +178,12 @@ impl Document {
     }
 
     /// A buffer view of `bytes`, starting on a 4-byte boundary.
-    fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
-        while self.bin.len() % 4 != 0 {
-            self.bin.push(0);
-        }
+    fn view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let offset = self.bin.len();
         self.bin.extend_from_slice(bytes);
         self.root.push(json::buffer::View {
@@ -381,9 +388,7 @@ impl Document {
     }
 
     fn finish(mut self) -> Result<Vec<u8>, VizError> {
-        while self.bin.len() % 4 != 0 {
-            self.bin.push(0);
-        }
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         self.root.buffers[self.buffer.value()].byte_length = USize64::from(self.bin.len());
         let json = self.root.to_vec().map_err(|e| VizError::Gltf(e.to_string()))?;
         let length = 12 + 8 + json.len().div_ceil(4) * 4 + 8 + self.bin.len();

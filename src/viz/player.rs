@@ -45,7 +45,11 @@ const MODULES: [(&str, &str, &[(&str, &str)]); 6] = [
             ("'../utils/SkeletonUtils.js'", "'three/addons/utils/SkeletonUtils.js'"),
         ],
     ),
-    ("three/addons/utils/BufferGeometryUtils.js", include_str!("../../assets/three/BufferGeometryUtils.js"), &[]),
+    (
+        "three/addons/utils/BufferGeometryUtils.js",
+        include_str!("../../assets/three/BufferGeometryUtils.js"),
+        &[],
+    ),
     ("three/addons/utils/SkeletonUtils.js", include_str!("../../assets/three/SkeletonUtils.js"), &[]),
     ("three/addons/controls/OrbitControls.js", include_str!("../../assets/three/OrbitControls.js"), &[]),
 ];
@@ -181,7 +185,10 @@ mod tests {
                 for relative in ["./", "../"] {
                     let import = format!("from{quote}{relative}");
                     let spaced = format!("from {quote}{relative}");
-                    assert!(!source.contains(&import) && !source.contains(&spaced), "{name} imports {relative}");
+                    assert!(
+                        !source.contains(&import) && !source.contains(&spaced),
+                        "{name} imports {relative}"
+                    );
                 }
             }
         }

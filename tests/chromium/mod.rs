@@ -111,7 +111,8 @@ impl Page {
         };
         let target = page.browser_call("Target.createTarget", json!({ "url": "about:blank" }));
         let target = target["targetId"].as_str().unwrap().to_string();
-        let attached = page.browser_call("Target.attachToTarget", json!({ "targetId": target, "flatten": true }));
+        let attached =
+            page.browser_call("Target.attachToTarget", json!({ "targetId": target, "flatten": true }));
         page.session = attached["sessionId"].as_str().unwrap().to_string();
         for domain in ["Page.enable", "Runtime.enable", "Log.enable"] {
             page.call(domain, json!({}));

@@ -79,7 +79,8 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         summary.recording.save(out).map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
     }
     if let Some(glb) = glb {
-        let bytes = gelenk::viz::gltf::glb_bytes(&loaded.world, &summary.recording).map_err(|e| e.to_string())?;
+        let bytes =
+            gelenk::viz::gltf::glb_bytes(&loaded.world, &summary.recording).map_err(|e| e.to_string())?;
         glb.commit(&bytes).map_err(|e| e.to_string())?;
     }
     if args.json {

@@ -31,7 +31,8 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
     let out = match &args.out {
         Some(out) => out.clone(),
         None => {
-            let stem = args.scene.file_stem().ok_or_else(|| format!("{}: not a file", args.scene.display()))?;
+            let stem =
+                args.scene.file_stem().ok_or_else(|| format!("{}: not a file", args.scene.display()))?;
             PathBuf::from(stem).with_extension("html")
         }
     };
@@ -51,7 +52,8 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
     for warning in &loaded.warnings {
         eprintln!("gelenk: warning: {warning}");
     }
-    let html = gelenk::viz::player::player_html(&loaded.world, &summary.recording).map_err(|e| e.to_string())?;
+    let html =
+        gelenk::viz::player::player_html(&loaded.world, &summary.recording).map_err(|e| e.to_string())?;
     page.commit(html.as_bytes()).map_err(|e| e.to_string())?;
     println!(
         "{}: {} steps, {} frames of {} bodies -> {} ({:.1} MB); open it in a browser",
