@@ -2,8 +2,8 @@
 //! the buggy on terrain, seeks to three recorded instants and takes screenshots, in which a
 //! ragdoll's head and the buggy's chassis are drawn where the recording has them (the body,
 //! drawn alone in flat magenta, has its pixel centroid within a few pixels of its projected
-//! centre), the contact overlay draws the recorded contacts, and the page reports no console
-//! error. Where Chromium is not installed (`.ci/run` installs Debian's package) the tests say so
+//! centre), the contact overlay draws the recorded contacts, and the page, offline, fetches
+//! nothing and reports no console error. Where Chromium is not installed (`.ci/run` installs Debian's package) the tests say so
 //! and pass. With `GELENK_WRITE_DOCS=1` the last screenshots are written to docs/player_*.png.
 #![cfg(unix)]
 
@@ -50,6 +50,10 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_cont
     let centre_in_body = collider.placement().translation;
 
     let mut page = chromium::Page::open(&browser, &dir.join("profile"), WIDTH, HEIGHT);
+    // Offline, as a page opened from a mail or a report may be; every request is recorded.
+    page.call("Network.enable", serde_json::json!({}));
+    let offline = serde_json::json!({ "offline": true, "latency": 0, "downloadThroughput": -1, "uploadThroughput": -1 });
+    page.call("Network.emulateNetworkConditions", offline);
     page.navigate(&format!("file://{}", page_file.display()));
     assert_eq!(page.eval("gelenkPlayer.ready.then(() => { gelenkPlayer.pause(); return true; })"), true);
     let n = recording.frames.len();
@@ -102,6 +106,16 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_cont
     }
     let errors = page.errors();
     assert!(errors.is_empty(), "console errors: {errors:#?}");
+    let requests: Vec<&str> = page
+        .events
+        .iter()
+        .filter(|e| e["method"] == "Network.requestWillBeSent")
+        .filter_map(|e| e["params"]["request"]["url"].as_str())
+        .collect();
+    assert!(requests.iter().any(|url| url.starts_with("file:")), "the page's own request was not seen");
+    let fetched: Vec<&&str> =
+        requests.iter().filter(|url| !url.starts_with("file:") && !url.starts_with("data:")).collect();
+    assert!(fetched.is_empty(), "the page fetched {fetched:?}");
     println!("{scene_file}: screenshots in {}", dir.display());
 }
 
