@@ -22,9 +22,17 @@ fn magenta(p: [u8; 4]) -> bool {
     p[0] > 200 && p[1] < 80 && p[2] > 200
 }
 
-/// Checks the player of `scene_file` run for `duration` s, following `body`; `doc` names the
-/// picture for docs/, taken with the contact overlay when `doc_contacts`.
-fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_contacts: bool) {
+/// The picture of a scene for docs/: its file name, the instant (0, 1, 2: early, middle, last),
+/// the fraction of the view the bodies fill, and whether the contacts are shown.
+struct DocPicture {
+    file: &'static str,
+    instant: usize,
+    fill: f64,
+    contacts: bool,
+}
+
+/// Checks the player of `scene_file` run for `duration` s on `body`.
+fn check_player(scene_file: &str, duration: f64, body: &str, doc: DocPicture) {
     let Some(browser) = chromium::find() else {
         println!(
             "skipped: Chromium is not installed (Debian: apt-get install chromium; .ci/run installs it)"
@@ -95,13 +103,19 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_cont
         assert!(drawn.pixels > (WIDTH * HEIGHT / 20) as u64, "t = {t}: only {} pixels drawn", drawn.pixels);
         let drawn_contacts = page.eval("gelenkPlayer.showContacts(true); gelenkPlayer.overlayCount()");
         assert_eq!(drawn_contacts, recording.frames[k].contacts.len(), "t = {t}");
-        let (_, png_contacts) = page.screenshot();
         page.eval("gelenkPlayer.showContacts(false); true");
         std::fs::write(dir.join(format!("t{i}.png")), &png).unwrap();
-        std::fs::write(dir.join(format!("t{i}_contacts.png")), &png_contacts).unwrap();
-        if k == n - 1 && std::env::var_os("GELENK_WRITE_DOCS").is_some() {
-            std::fs::write(repo.join("docs").join(doc), if doc_contacts { &png_contacts } else { &png })
-                .unwrap();
+        if i == doc.instant {
+            page.eval(&format!(
+                "gelenkPlayer.fit({}); gelenkPlayer.showContacts({}); true",
+                doc.fill, doc.contacts
+            ));
+            let (_, picture) = page.screenshot();
+            page.eval("gelenkPlayer.showContacts(false); true");
+            std::fs::write(dir.join(doc.file), &picture).unwrap();
+            if std::env::var_os("GELENK_WRITE_DOCS").is_some() {
+                std::fs::write(repo.join("docs").join(doc.file), &picture).unwrap();
+            }
         }
     }
     let errors = page.errors();
@@ -121,10 +135,12 @@ fn check_player(scene_file: &str, duration: f64, body: &str, doc: &str, doc_cont
 
 #[test]
 fn the_ragdoll_pile_is_drawn_where_it_was_recorded() {
-    check_player("ragdoll_pile.toml", 3.0, "ragdoll19/head", "player_ragdoll_pile.png", false);
+    let doc = DocPicture { file: "player_ragdoll_pile.png", instant: 2, fill: 0.9, contacts: false };
+    check_player("ragdoll_pile.toml", 3.0, "ragdoll19/head", doc);
 }
 
 #[test]
 fn the_buggy_on_terrain_is_drawn_where_it_was_recorded() {
-    check_player("buggy_terrain.toml", 10.0, "buggy/chassis", "player_buggy_terrain.png", true);
+    let doc = DocPicture { file: "player_buggy_terrain.png", instant: 1, fill: 0.3, contacts: true };
+    check_player("buggy_terrain.toml", 10.0, "buggy/chassis", doc);
 }

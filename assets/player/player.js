@@ -180,8 +180,8 @@ function resize() {
 }
 
 // Points the camera, along its current direction, at the bodies as they are now: their bounding
-// box fills about 80 % of the view.
-function fit() {
+// box fills the fraction `fill` of the view (0.8 by default).
+function fit(fill = 0.8) {
   const box = new THREE.Box3();
   for (const node of bodyNodes.values()) box.expandByObject(node);
   if (box.isEmpty()) {
@@ -197,8 +197,8 @@ function fit() {
   for (let i = 0; i < 8; i++) {
     corners.push(new THREE.Vector3(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y, i & 4 ? box.max.z : box.min.z));
   }
-  // The distance that contains the bounding sphere, then shortened (never into the sphere) until
-  // the box's corners reach 80 % of the view.
+  // The distance that contains the bounding sphere, then changed (never into the sphere) until
+  // the box's corners reach `fill` of the view.
   let distance = radius / Math.sin(THREE.MathUtils.degToRad(camera.fov) / 2) / Math.min(1, camera.aspect);
   controls.target.copy(sphere.center);
   for (let pass = 0; pass < 4; pass++) {
@@ -212,7 +212,7 @@ function fit() {
       const v = c.clone().project(camera);
       return Math.max(Math.abs(v.x), Math.abs(v.y));
     }));
-    distance = Math.max(distance * extent / 0.8, radius * 1.05);
+    distance = Math.max((distance * extent) / fill, radius * 1.05);
   }
   camera.position.copy(sphere.center).addScaledVector(direction, distance);
   camera.near = Math.max(distance / 1000, 0.001);

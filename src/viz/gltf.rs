@@ -390,10 +390,10 @@ impl Document {
     fn finish(mut self) -> Result<Vec<u8>, VizError> {
         self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         self.root.buffers[self.buffer.value()].byte_length = USize64::from(self.bin.len());
-        let json = self.root.to_vec().map_err(|e| VizError::Gltf(e.to_string()))?;
+        let json = self.root.to_vec().map_err(|e| VizError::Encode(e.to_string()))?;
         let length = 12 + 8 + json.len().div_ceil(4) * 4 + 8 + self.bin.len();
         if length > u32::MAX as usize {
-            return Err(VizError::Gltf(format!(
+            return Err(VizError::Encode(format!(
                 "{length} bytes is more than a binary glTF file holds (4 GiB): record fewer frames"
             )));
         }
@@ -402,6 +402,6 @@ impl Document {
             json: Cow::Owned(json),
             bin: Some(Cow::Owned(self.bin)),
         };
-        glb.to_vec().map_err(|e| VizError::Gltf(e.to_string()))
+        glb.to_vec().map_err(|e| VizError::Encode(e.to_string()))
     }
 }

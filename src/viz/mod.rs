@@ -54,9 +54,9 @@ pub enum VizError {
         /// What went wrong.
         message: String,
     },
-    /// The glTF document could not be serialized.
-    #[error("glTF: {0}")]
-    Gltf(String),
+    /// The glTF document or the page's data could not be encoded.
+    #[error("cannot encode the run: {0}")]
+    Encode(String),
 }
 
 /// Where the moving bodies are over a recording (world frame, m): the bounding box of their

@@ -79,7 +79,9 @@ mod tests {
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         assert!(OutputFile::create(&dir.join("a.gltf"), "glb").is_err());
         assert!(OutputFile::create(&dir.join("missing/a.glb"), "glb").is_err());
-        assert!(OutputFile::create(&dir, "glb").is_err());
+        std::fs::create_dir(dir.join("b.glb")).unwrap();
+        let error = OutputFile::create(&dir.join("b.glb"), "glb").unwrap_err();
+        assert!(error.to_string().ends_with("b.glb: is a directory"), "{error}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -9,7 +9,7 @@
 //! of the total energy and the deepest penetration over time. It exposes `window.gelenkPlayer`
 //! for scripts and tests: `ready` (a promise), `bodies`, `times`, `duration`, `seek(t)`,
 //! `play()`, `pause()`, `setSpeed(s)`, `showContacts(on)`, `follow(on)`,
-//! `fit()` (the camera on the bodies as they are), `project(x, y, z)` (a world point, z up, to `{x, y}` pixels of the page), `bodyPosition(name)`
+//! `fit(fill)` (the camera on the bodies as they are, their box filling that fraction of the view, 0.8 by default), `project(x, y, z)` (a world point, z up, to `{x, y}` pixels of the page), `bodyPosition(name)`
 //! (the drawn body's origin, world frame), `highlight(name)` (draws one body flat magenta on top
 //! of everything; `null` restores) and `overlayCount()` (contact points drawn).
 
@@ -108,7 +108,7 @@ fn import_map() -> String {
 
 /// JSON that can stand inside a `<script>` element: `</` is written `<\/`.
 fn script_json(value: &impl Serialize) -> Result<String, VizError> {
-    let text = serde_json::to_string(value).map_err(|e| VizError::Gltf(e.to_string()))?;
+    let text = serde_json::to_string(value).map_err(|e| VizError::Encode(e.to_string()))?;
     Ok(text.replace("</", "<\\/"))
 }
 
