@@ -4,9 +4,9 @@
 
 use super::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin, RowSparsity};
 use crate::data::Data;
+use crate::error::SolverError;
 use crate::math::{axpy, dot, Vec3};
 use crate::model::{Model, NO_DOF};
-use crate::solvers::SolverError;
 use nalgebra::{DMatrix, DVector};
 use std::ops::{Index, IndexMut};
 
