@@ -32,7 +32,7 @@
 //! ([`super::Residuals::exact`], what a [`super::SolverChain`] certifies); PGS then sweeps on
 //! from it, correcting the active set where the step left it wrong.
 
-use super::pgs::project_friction;
+use super::friction::project_friction;
 use super::residuals::{
     contact_of_normal, norm2, pyramid_facet, pyramid_offset_and_half, pyramid_vertex, residuals,
     residuals_at_velocities,
