@@ -1,7 +1,7 @@
 //! The scenes of the speed–error report: smooth multibodies stepped by an [`Integrator`] and
 //! contact scenes stepped by the [`World`], each with its error measures.
 
-use super::speed_error::ReportError;
+use super::types::ReportError;
 use crate::algorithms::{kinetic_energy, potential_energy};
 use crate::collision::MeshOptions;
 use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
