@@ -20,14 +20,13 @@ const SUBSPACE_COST_SHARE: usize = 4;
 
 /// Longest wait (solves) between exact solves of a λ already within the goal. A subspace step
 /// that finds λ within the residual goal accepts it as it is, and the next solve's sweeps start
-/// from that error: a resting box stack's sweeps then moved λ by 1–3e-8 every step, over their
-/// 1e-9 tolerance, and sustained a wobble of 3e-7 m/s (3.4 sweeps per step for ever). Solving
+/// from that error: a resting box stack's sweeps would move λ by 1–3e-8 every step, over their
+/// 1e-9 tolerance, and sustain a wobble of 3e-7 m/s (3.4 sweeps per step for ever). Solving
 /// such a λ exactly ends the sweeps there (one per step from then on), but not where the
 /// sweeps go on for another reason (a ragdoll lying still, its joint-friction rows at their
 /// bounds): an exact solve is tried, tried again as soon as the next solve settles in one
-/// sweep, and after each failure waited for twice as long, up to this. (`box_stack10.toml`:
-/// −23 % instructions, 6 → 0 fallbacks, still to 1e-9 m/s; ragdoll seeds 1–7 +2.2 %, mostly
-/// episodes going other ways: seed 6 tries 29 exact solves, all failing, ~7 M instructions.)
+/// sweep, and after each failure waited for twice as long, up to this, so that the exact solves
+/// that fail cost little.
 const EXACT_WAIT_MAX: usize = 64;
 
 /// Sweeps before the first subspace step when the previous solve was settled by one: the
@@ -38,10 +37,9 @@ const SUBSPACE_EARLY: usize = 3;
 /// Share of a chain's certified tolerance that PGS aims for ([`PgsSolver::residual_goal`]): a
 /// sliding or creeping ragdoll's warm-started solves are within ~1e-7 m/s after a few sweeps,
 /// well within the 1e-6 a chain certifies, and a subspace step on to 1e-10 and beyond (two
-/// reduced factorizations of ~48 unknowns) cost more than the rest of the step (ragdoll seeds
-/// 1–7: −11.6 % instructions over an episode, 112 steps above the tolerance against 111). A
-/// tenth leaves the next warm start good enough: at 3e-7 the shipped ragdoll's misses went
-/// from 3 to 30.
+/// reduced factorizations of ~48 unknowns) costs more than the rest of the step. A tenth
+/// leaves the next warm start good enough: at 0.3 the ragdoll of `models/ragdoll_fall.toml`
+/// misses the tolerance ten times as often.
 pub const CERTIFIED_SHARE: f64 = 0.1;
 
 /// Projected Gauss–Seidel.
@@ -253,9 +251,8 @@ impl ConstraintSolver for PgsSolver {
             };
             let soft: f64 = (0..n).map(|i| problem.regularization[i] * lambda[i] * lambda[i]).sum();
             let linear = problem.bias.dot(lambda);
-            // (Scaling λ₀ by its best factor instead, or whenever that factor is below 1, did
-            // worse: ragdoll seeds 1–7 15.59 G and 15.35 G instructions against 14.95 G, the
-            // latter with 14 fallbacks on models/box_stack10.toml.)
+            // (Scaling λ₀ by its best factor instead, or whenever that factor is below 1, costs
+            // more on the ragdolls, and the latter falls back on models/box_stack10.toml.)
             if 0.5 * (quadratic + soft) + linear > 0.0 {
                 lambda.fill(0.0);
                 self.workspace.dv.fill(0.0);
@@ -478,8 +475,8 @@ impl ConstraintSolver for PgsSolver {
                     // The sweeps' change is above the tolerance but λ already meets it (a
                     // redundant contact set: the sweeps move λ along its internal forces). The
                     // next solve checks early again: waiting for the regular schedule there
-                    // costs the sweeps up to it (box_stack10.xml: −2.7 % instructions per
-                    // episode; with 12 subspace rounds a box stack alternated 1 and 69 sweeps).
+                    // costs the sweeps up to it (a box stack with 12 subspace rounds would
+                    // alternate 1 and 69 sweeps).
                     certified = ws.residuals.take();
                     settled_by_subspace = true;
                     break;
