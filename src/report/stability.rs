@@ -12,7 +12,7 @@
 //! with a 1000:1 end mass (|ΔE/E| < 1e-6) is tested with RK4 outside the world, not a case.
 
 use crate::collision::MeshOptions;
-use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
+use crate::constraints::ContactParameters;
 use crate::integrators::IntegratorKind;
 use crate::math::{axis_angle, Mat3, Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape, Suspension};
@@ -227,15 +227,8 @@ fn steps(duration: f64, dt: f64) -> usize {
     (duration / dt).round() as usize
 }
 
-/// A lone rigid body: a free joint and one collision shape.
-pub fn free_body(name: &str, shape: Shape, inertia: RigidInertia) -> Model {
-    let mut b = ModelBuilder::new();
-    b.add_body(
-        BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
-            .with_collision(shape, Transform::identity()),
-    );
-    b.build().expect("a lone free body is a valid model")
-}
+/// A model of one free body ([`crate::scenes::free_body`]).
+pub use crate::scenes::free_body;
 
 fn cube(side: f64, mass: f64) -> Model {
     let size = Vec3::repeat(side);
@@ -482,61 +475,8 @@ fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-/// The four-bar linkage of `tests/world.rs`: crank a = 0.15 m from the origin, coupler b =
-/// 0.35 m, rocker c = 0.30 m (a chain of three y-hinges) whose tip is closed by a hinge loop
-/// joint to the world point (d, 0, 0), d = 0.40 m; 1 kg rods. Returns the world and the
-/// multibody index, at the closed configuration with crank angle 1 rad.
-pub fn four_bar_world(options: WorldOptions) -> Result<(World, usize), StepError> {
-    let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
-    let rod = |name: &str, parent: &str, x: f64, length: f64| {
-        let i = length * length / 12.0;
-        let inertia = RigidInertia::new(
-            1.0,
-            Vec3::new(length / 2.0, 0.0, 0.0),
-            Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
-        );
-        BodySpec::new(
-            name,
-            parent,
-            Joint::hinge(Vec3::y()),
-            Transform::from_translation(Vec3::new(x, 0.0, 0.0)),
-            inertia,
-        )
-    };
-    let mut builder = ModelBuilder::new();
-    builder.add_body(rod("crank", "universe", 0.0, a));
-    builder.add_body(rod("coupler", "crank", a, b));
-    builder.add_body(rod("rocker", "coupler", b, c));
-    let model = builder.build().expect("the four-bar is a valid model");
-    // Closed configuration in 2-D coordinates (x, −z): a body turned by φ points along (cos φ, sin φ).
-    let phi1: f64 = 1.0;
-    let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
-    let o2 = nalgebra::Vector2::new(d, 0.0);
-    let dist = (o2 - p).norm();
-    let u = (o2 - p) / dist;
-    let l = (b * b - c * c + dist * dist) / (2.0 * dist);
-    let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
-    let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
-    let phi3 = (o2.y - tip.y).atan2(o2.x - tip.x);
-    let mut w = World::new(options);
-    let m = add(&mut w, "four-bar", model)?;
-    w.add_loop(
-        m,
-        LoopClosure {
-            body_a: 3,
-            frame_a: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
-            body_b: 0,
-            frame_b: Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
-            kind: LoopKind::Hinge { axis: Vec3::y() },
-            erp: 0.2,
-        },
-    )?;
-    let q = &mut w.multibody_mut(m).state.q;
-    q[0] = phi1;
-    q[1] = phi2 - phi1;
-    q[2] = phi3 - phi2;
-    Ok((w, m))
-}
+/// The four-bar linkage of [`crate::scenes::four_bar_world`].
+pub use crate::scenes::four_bar_world;
 
 fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     let (mut w, m) = four_bar_world(options(setting))?;

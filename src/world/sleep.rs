@@ -159,7 +159,7 @@ mod tests {
     use crate::collision::MeshOptions;
     use crate::math::Vec3;
     use crate::model::{RigidInertia, Shape};
-    use crate::report::stability::free_body;
+    use crate::scenes::free_body;
     use crate::world::{World, WorldOptions};
 
     #[test]

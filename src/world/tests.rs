@@ -5,7 +5,7 @@ use super::dofs::block_factors;
 use super::*;
 use crate::constraints::{add_contact_rows_with, RowOrigin};
 use crate::model::RigidInertia;
-use crate::report::stability::free_body;
+use crate::scenes::free_body;
 
 /// A 0.2 m box resting on the ground for 100 steps: four contacts with impulses.
 fn resting_box() -> World {

@@ -1,12 +1,9 @@
-//! Built-in scenes and a minimal time-stepping loop, for exporting constraint problems
-//! (`gelenk export-problems`) and for solver tests.
-//!
-//! **A stopgap until the World (issue 5) exists**: this module steps one multibody with a
-//! velocity-level scheme — free velocity `v_free = v + h·aba(q, v, τ = 0)`, constraint rows
-//! (contacts, joint limits, loop closures), the [`ConstraintProblem`] from [`assemble_single`],
-//! clarabel's impulses λ, `v⁺ = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v⁺` — and nothing else (no
-//! warm starts, no sleeping, one collision world per scene). Once the World exists, the scenes
-//! should be expressed through it and this loop removed.
+//! The scenes of `gelenk export-problems`: one multibody each, stepped by a velocity-level
+//! scheme of its own that poses every step's problem for one solver (clarabel), so that the
+//! exported problems do not depend on the world's warm start, speculation or row reuse: free
+//! velocity `v_free = v + h·aba(q, v, τ = 0)`, constraint rows (contacts, joint limits, loop
+//! closures), the [`ConstraintProblem`] from [`assemble_single`], clarabel's impulses λ,
+//! `v⁺ = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v⁺`.
 //!
 //! | scene | what | rows |
 //! |---|---|---|
@@ -15,14 +12,16 @@
 //! | `stack2` | two boxes stacked on the ground, μ = 0.6 | 8 contacts, cone |
 //! | `stack10` | ten boxes stacked, μ = 0.6 | 40 contacts, cone |
 //! | `sphere-incline` | a sphere sliding down a 20° incline, μ = 0.3 | 1 contact, sliding then rolling |
-//! | `four-bar` | a four-bar linkage under gravity, closed by a hinge loop joint | 5 bilateral rows, 3 of them redundant |
+//! | `four-bar` | the four-bar linkage of [`super::four_bar_world`] under gravity | 5 bilateral rows, 3 of them redundant |
 //! | `limit-pendulum` | a hinge pendulum falling onto its upper limit (bounce 0.3) | 1 unilateral row |
 
+use super::four_bar::{four_bar_closed_angles, four_bar_closure, FOUR_BAR_CRANK_ANGLE, FOUR_BAR_LENGTHS};
+use super::rod;
 use crate::algorithms::{aba, compute_joint_jacobians, crba, factor_mass_matrix};
 use crate::collision::{CollisionOptions, CollisionWorld, Contact, MeshOptions};
 use crate::constraints::{
     add_contact_rows, add_joint_limit_rows, add_loop_closure_rows, assemble_single, ConstraintProblem,
-    ContactParameters, FrictionModel, JointLimitParameters, LoopClosure, LoopKind, ProblemBuilder,
+    ContactParameters, FrictionModel, JointLimitParameters, LoopClosure, ProblemBuilder,
 };
 use crate::data::Data;
 use crate::error::{CollisionError, DynamicsError, ModelError};
@@ -102,17 +101,6 @@ fn boxed(name: &str, mass: f64, size: Vec3) -> BodySpec {
         .with_collision(Shape::Box { size }, Transform::identity())
 }
 
-/// A rod of `length` m and 1 kg along the body's x axis, hinged about y at the body origin.
-fn rod(name: &str, parent: &str, placement: Transform, length: f64) -> BodySpec {
-    let i = length * length / 12.0;
-    let inertia = RigidInertia::new(
-        1.0,
-        Vec3::new(length / 2.0, 0.0, 0.0),
-        Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
-    );
-    BodySpec::new(name, parent, Joint::hinge(Vec3::y()), placement, inertia)
-}
-
 /// Writes the pose of free body `k` (position, rotation) and its world velocity (linear, angular)
 /// into q and v (the free joint's velocity is in body axes).
 fn set_free(
@@ -189,42 +177,14 @@ impl Scene {
                 contact.mu = 0.3;
             }
             "four-bar" => {
-                // Crank a (hinged at the origin), coupler b, rocker c (hinged at (d, 0, 0)); all
-                // rotate about y, so in the x-z plane a body turned by φ points along
-                // (cos φ, −sin φ). The coupler's tip is joined to the rocker's by a hinge.
-                let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
-                builder.add_body(rod("crank", "universe", Transform::identity(), a));
-                builder.add_body(rod(
-                    "coupler",
-                    "crank",
-                    Transform::from_translation(Vec3::new(a, 0.0, 0.0)),
-                    b,
-                ));
-                builder.add_body(rod(
-                    "rocker",
-                    "universe",
-                    Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
-                    c,
-                ));
-                // Closed configuration for crank angle φ₁ (2-D coordinates (x, −z)).
-                let phi1: f64 = 1.0;
-                let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
-                let o2 = nalgebra::Vector2::new(d, 0.0);
-                let dist = (o2 - p).norm();
-                let u = (o2 - p) / dist;
-                let l = (b * b - c * c + dist * dist) / (2.0 * dist);
-                let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
-                let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
-                let phi3 = (tip.y - o2.y).atan2(tip.x - o2.x);
-                hinge_q = vec![phi1, phi2 - phi1, phi3];
-                loops.push(LoopClosure {
-                    body_a: 2,
-                    frame_a: Transform::from_translation(Vec3::new(b, 0.0, 0.0)),
-                    body_b: 3,
-                    frame_b: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
-                    kind: LoopKind::Hinge { axis: Vec3::y() },
-                    erp: 0.2,
-                });
+                // The linkage of `four_bar.rs`: its chain, its closure, its closed configuration.
+                let (a, b, c, _) = FOUR_BAR_LENGTHS;
+                let at = |x: f64| Transform::from_translation(Vec3::new(x, 0.0, 0.0));
+                builder.add_body(rod("crank", "universe", at(0.0), a));
+                builder.add_body(rod("coupler", "crank", at(a), b));
+                builder.add_body(rod("rocker", "coupler", at(b), c));
+                hinge_q = four_bar_closed_angles(FOUR_BAR_CRANK_ANGLE).to_vec();
+                loops.push(four_bar_closure());
                 ground = None;
                 h = 0.01;
             }
