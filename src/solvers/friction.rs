@@ -21,10 +21,10 @@ fn unconstrained_block_step(o: [f64; 2], w: [f64; 2], g: [f64; 3], omega: f64) -
 /// velocities and `o` their impulses, the local problem is `min ½ λᵀGλ + (w − G o)ᵀλ` over the
 /// ellipse `(λ₁/μ₁)² + (λ₂/μ₂)² ≤ bound²`. The unconstrained minimiser `o − ω G⁻¹ w` is taken if
 /// inside; otherwise the boundary minimiser, where `G λ + c = −γ ∇` (γ ≥ 0): the new tangential
-/// velocity is opposite to the impulse in the scaled coordinates, i.e. maximum dissipation. The
-/// scalar-rows-then-radial-scaling update it replaces has fixed points that violate maximum
+/// velocity is opposite to the impulse in the scaled coordinates, i.e. maximum dissipation. A
+/// scalar-rows-then-radial-scaling update instead has fixed points that violate maximum
 /// dissipation when G is not isotropic (a wheel: light spin dof against a heavy chassis), which
-/// kept PGS from converging on turning vehicles. γ is found by Newton's method on the secular
+/// keep PGS from converging on turning vehicles. γ is found by Newton's method on the secular
 /// equation `1/‖s(γ)‖ = 1/bound` (Moré and Sorensen, 1983), started from `gamma_start` (the
 /// last sweep's multiplier of this contact, near the root for a sliding contact; the iteration
 /// is the same safeguarded Newton, γ ≥ 0, at most 30 steps) and leaving the new γ there.

@@ -1,6 +1,6 @@
 //! Numerical stability on hard cases: each [`Case`] is a scene plus a quantitative criterion,
-//! run through the [`crate::world::World`] with one solver and one time step (a [`Setting`]) and returning
-//! the measured figure ([`Outcome`]). `tests/hard_cases.rs` asserts the criteria at chosen
+//! run through the [`crate::world::World`] with one solver and one time step (a [`Setting`])
+//! and returning the measured figure ([`Outcome`]). `tests/hard_cases.rs` asserts the criteria at chosen
 //! settings; [`run`] fills the table of every case × solver × dt that `gelenk report stability`
 //! writes as markdown and CSV — the same code measures both.
 //!
