@@ -803,50 +803,20 @@ fn export_problems(
     friction: &str,
     only: &[usize],
 ) -> Result<(), String> {
-    use gelenk::io::problem::{write_problem, ProblemMeta};
-    use gelenk::solvers::{ClarabelSolver, ConstraintSolver};
     let path = Path::new(scene);
     if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml") || e.eq_ignore_ascii_case("xml")) {
         return export_world_problems(path, steps, out, friction, only);
     }
-    let mut scene = gelenk::scenes::Scene::new(scene).map_err(|e| e.to_string())?;
-    scene.friction = parse_friction(friction)?;
-    let mut problem = gelenk::constraints::ConstraintProblem::default();
-    let mut lambda = DVector::zeros(0);
-    let mut written = 0;
-    for step in 0..steps {
-        scene.problem(&mut problem).map_err(|e| e.to_string())?;
-        if problem.rows() > 0 && (only.is_empty() || only.contains(&step)) {
-            let meta = ProblemMeta::compute(&scene.name, step, scene.h, &problem);
-            let dir = out.join(format!("step-{step:04}"));
-            write_problem(&dir, &problem, &meta).map_err(|e| e.to_string())?;
-            let outcome = |name: &str| {
-                let r = &meta.solutions[name];
-                match r.certified {
-                    Some(c) => format!("{name} {:?} {c:.1e}", r.status).to_lowercase(),
-                    None => format!("{name} failed"),
-                }
-            };
-            println!(
-                "{}: {} rows, {} contacts, {}; {}, {}, {}",
-                dir.display(),
-                meta.rows,
-                meta.contacts,
-                meta.formulation,
-                outcome("clarabel"),
-                outcome("lemke"),
-                outcome("pgs")
-            );
-            written += 1;
-        }
-        // The scene goes on with clarabel's impulses (the reference solution).
-        ClarabelSolver::default()
-            .solve(&problem, &mut lambda)
-            .map_err(|e| format!("{} step {step}: {e}", scene.name))?;
-        scene.advance(&problem, &lambda);
-    }
-    println!("wrote {written} problems of {steps} steps to {}", out.display());
-    Ok(())
+    let world = gelenk::scenes::scene_world(scene).map_err(|e| e.to_string())?;
+    export_problems_of(ExportSource::World(Box::new(world)), scene, steps, out, friction, only)
+}
+
+/// What `export-problems` steps.
+enum ExportSource {
+    /// A TOML scene: its controls (vehicle commands, servos) are applied before each step.
+    Scene(Box<gelenk::io::scene::Scene>),
+    /// A world stepped as it is (an MJCF file, a built-in scene).
+    World(Box<gelenk::world::World>),
 }
 
 /// `export-problems` for a scene or MJCF file: the world steps with its own solver chain, and
@@ -858,27 +828,35 @@ fn export_world_problems(
     friction: &str,
     only: &[usize],
 ) -> Result<(), String> {
-    use gelenk::io::problem::{write_problem, ProblemMeta};
-    enum Source {
-        /// A TOML scene: its controls (vehicle commands, servos) are applied before each step.
-        Scene(Box<gelenk::io::scene::Scene>),
-        Mjcf(Box<gelenk::world::World>),
-    }
-    let mut source = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) {
-        Source::Scene(Box::new(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?))
+    let source = if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml")) {
+        ExportSource::Scene(Box::new(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?))
     } else {
-        Source::Mjcf(Box::new(load_world(path)?))
+        ExportSource::World(Box::new(load_world(path)?))
     };
-    let friction = parse_friction(friction)?;
     let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    export_problems_of(source, &name, steps, out, friction, only)
+}
+
+/// Steps `source` and writes the problem of each selected step (`only`, or every step with
+/// rows) as it was posed, under `out/step-NNNN`.
+fn export_problems_of(
+    mut source: ExportSource,
+    name: &str,
+    steps: usize,
+    out: &Path,
+    friction: &str,
+    only: &[usize],
+) -> Result<(), String> {
+    use gelenk::io::problem::{write_problem, ProblemMeta};
+    let friction = parse_friction(friction)?;
     let mut written = 0;
     for step in 0..steps {
         let world = match &mut source {
-            Source::Scene(scene) => {
+            ExportSource::Scene(scene) => {
                 scene.apply_controls().map_err(|e| format!("{name} step {step}: {e}"))?;
                 &mut scene.world
             }
-            Source::Mjcf(world) => world,
+            ExportSource::World(world) => world,
         };
         if step == 0 {
             world.set_friction(friction).map_err(|e| e.to_string())?;
@@ -887,7 +865,7 @@ fn export_world_problems(
         world.step().map_err(|e| format!("{name} step {step}: {e}"))?;
         let problem = world.problem();
         if problem.rows() > 0 && (only.is_empty() || only.contains(&step)) {
-            let meta = ProblemMeta::compute(&name, step, h, problem);
+            let meta = ProblemMeta::compute(name, step, h, problem);
             let dir = out.join(format!("step-{step:04}"));
             write_problem(&dir, problem, &meta).map_err(|e| e.to_string())?;
             println!(

@@ -1,9 +1,7 @@
-//! The scenes of `gelenk export-problems`: one multibody each, stepped by a velocity-level
-//! scheme of its own that poses every step's problem for one solver (clarabel), so that the
-//! exported problems do not depend on the world's warm start, speculation or row reuse: free
-//! velocity `v_free = v + h·aba(q, v, τ = 0)`, constraint rows (contacts, joint limits, loop
-//! closures), the [`ConstraintProblem`] from [`assemble_single`], clarabel's impulses λ,
-//! `v⁺ = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v⁺`.
+//! The scenes of `gelenk export-problems` (and of the committed problem corpus,
+//! `tests/problems`): one multibody each on a [`World`] whose chain is clarabel alone, sleeping
+//! off and the Delassus matrix formed anew every step, so that each step poses its own problem
+//! and is solved to the reference accuracy; the problem of each step is [`World::problem`].
 //!
 //! | scene | what | rows |
 //! |---|---|---|
@@ -17,17 +15,12 @@
 
 use super::four_bar::{four_bar_closed_angles, four_bar_closure, FOUR_BAR_CRANK_ANGLE, FOUR_BAR_LENGTHS};
 use super::rod;
-use crate::algorithms::{aba, compute_joint_jacobians, crba, factor_mass_matrix};
-use crate::collision::{CollisionOptions, CollisionWorld, Contact, MeshOptions};
-use crate::constraints::{
-    add_contact_rows, add_joint_limit_rows, add_loop_closure_rows, assemble_single, ConstraintProblem,
-    ContactParameters, FrictionModel, JointLimitParameters, LoopClosure, ProblemBuilder,
-};
-use crate::data::Data;
-use crate::error::{CollisionError, DynamicsError, ModelError};
+use crate::collision::MeshOptions;
+use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters};
+use crate::error::ModelError;
 use crate::math::{axis_angle, Mat3, Transform, Vec3};
-use crate::model::{BodySpec, Joint, JointLimits, Model, ModelBuilder, RigidInertia, Shape};
-use crate::solvers::{ClarabelSolver, ConstraintSolver, SolverError};
+use crate::model::{BodySpec, Joint, JointLimits, ModelBuilder, RigidInertia, Shape};
+use crate::world::{SolverKind, StepError, World, WorldOptions};
 use nalgebra::{DVector, UnitQuaternion};
 use thiserror::Error;
 
@@ -44,56 +37,9 @@ pub enum SceneError {
     /// The scene's model is invalid (a bug in the scene).
     #[error("scene model: {0}")]
     Model(#[from] ModelError),
-    /// The scene's collision geometry is invalid (a bug in the scene).
-    #[error("scene collision: {0}")]
-    Collision(#[from] CollisionError),
-    /// The dynamics failed at a step.
-    #[error("step {step}: {source}")]
-    Dynamics {
-        /// Step index.
-        step: usize,
-        /// The error.
-        source: DynamicsError,
-    },
-    /// clarabel found no impulses at a step.
-    #[error("step {step}: {source}")]
-    Solver {
-        /// Step index.
-        step: usize,
-        /// The error.
-        source: SolverError,
-    },
-}
-
-/// A built-in scene: one multibody, its collision world, its constraints and its state.
-pub struct Scene {
-    /// Scene name (one of [`SCENE_NAMES`]).
-    pub name: String,
-    /// The multibody.
-    pub model: Model,
-    /// Its buffers.
-    pub data: Data,
-    /// Configuration.
-    pub q: DVector<f64>,
-    /// Velocity.
-    pub v: DVector<f64>,
-    /// Time step (s).
-    pub h: f64,
-    /// Index of the next step (0 before the first).
-    pub step: usize,
-    /// Contact parameters of every contact.
-    pub contact: ContactParameters,
-    /// Joint-limit parameters.
-    pub limits: JointLimitParameters,
-    /// Loop closures.
-    pub loops: Vec<LoopClosure>,
-    /// Friction model of the contact rows.
-    pub friction: FrictionModel,
-    collision: CollisionWorld,
-    multibody: usize,
-    builder: ProblemBuilder,
-    contacts: Vec<Contact>,
-    v_free: DVector<f64>,
+    /// The world refused the scene (a bug in the scene).
+    #[error("scene world: {0}")]
+    World(#[from] StepError),
 }
 
 fn boxed(name: &str, mass: f64, size: Vec3) -> BodySpec {
@@ -118,194 +64,117 @@ fn set_free(
     v.rows_mut(6 * k + 3, 3).copy_from(&(r.transpose() * velocity.1));
 }
 
-impl Scene {
-    /// The built-in scene `name` at its initial state.
-    pub fn new(name: &str) -> Result<Self, SceneError> {
-        let mut builder = ModelBuilder::new();
-        builder.name(name);
-        let mut ground = Some(Vec3::z());
-        let mut contact = ContactParameters::default();
-        let mut limits = JointLimitParameters::default();
-        let mut loops = Vec::new();
-        let (mut h, mut poses, mut velocities) = (0.005, Vec::new(), Vec::new());
-        let mut hinge_q: Vec<f64> = Vec::new();
-        let identity = Mat3::identity();
-        match name {
-            "box-drop" => {
-                builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
-                let r = axis_angle(&Vec3::new(1.0, 0.5, 0.0).normalize(), 0.5);
-                poses.push((Vec3::new(0.0, 0.0, 0.3), r));
-                velocities.push((Vec3::new(1.0, 0.2, -1.0), Vec3::new(0.0, 0.0, 2.0)));
-                contact.restitution = 0.2;
-            }
-            "box-flat" => {
-                builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
-                poses.push((Vec3::new(0.0, 0.0, 0.0995), identity));
-                velocities.push((Vec3::new(0.5, 0.2, 0.0), Vec3::zeros()));
-                contact.mu = 0.0;
-            }
-            "stack2" | "stack10" => {
-                let count = if name == "stack2" { 2 } else { 10 };
-                let size = Vec3::new(0.3, 0.3, 0.1);
-                for k in 0..count {
-                    builder.add_body(boxed(&format!("box{k}"), 1.0, size));
-                    let r = axis_angle(&Vec3::z(), 0.1 * k as f64);
-                    let offset = Vec3::new(0.01 * (k % 3) as f64, -0.01 * (k % 2) as f64, 0.0);
-                    poses.push((offset + Vec3::z() * (0.05 + 0.1 * k as f64 - 0.0005 * (k + 1) as f64), r));
-                    velocities.push((Vec3::zeros(), Vec3::zeros()));
-                }
-                contact.mu = 0.6;
-            }
-            "sphere-incline" => {
-                let radius = 0.1;
-                builder.add_body(
-                    BodySpec::new(
-                        "ball",
-                        "universe",
-                        Joint::Free,
-                        Transform::identity(),
-                        RigidInertia::solid_sphere(1.0, radius),
-                    )
-                    .with_collision(Shape::Sphere { radius }, Transform::identity()),
-                );
-                let slope = 20f64.to_radians();
-                let normal = Vec3::new(slope.sin(), 0.0, slope.cos());
-                ground = Some(normal);
-                let down = Vec3::new(-slope.cos(), 0.0, slope.sin());
-                poses.push((normal * (radius - 0.0005), identity));
-                velocities.push((down * 0.5, Vec3::zeros()));
-                contact.mu = 0.3;
-            }
-            "four-bar" => {
-                // The linkage of `four_bar.rs`: its chain, its closure, its closed configuration.
-                let (a, b, c, _) = FOUR_BAR_LENGTHS;
-                let at = |x: f64| Transform::from_translation(Vec3::new(x, 0.0, 0.0));
-                builder.add_body(rod("crank", "universe", at(0.0), a));
-                builder.add_body(rod("coupler", "crank", at(a), b));
-                builder.add_body(rod("rocker", "coupler", at(b), c));
-                hinge_q = four_bar_closed_angles(FOUR_BAR_CRANK_ANGLE).to_vec();
-                loops.push(four_bar_closure());
-                ground = None;
-                h = 0.01;
-            }
-            "limit-pendulum" => {
-                let limits_spec =
-                    JointLimits { lower: vec![-0.5], upper: vec![0.3], velocity: vec![], effort: vec![] };
-                builder.add_body(rod("arm", "universe", Transform::identity(), 1.0).with_limits(limits_spec));
-                hinge_q = vec![0.0];
-                limits.restitution = 0.3;
-                ground = None;
-                h = 0.01;
-            }
-            other => return Err(SceneError::Unknown(other.to_string())),
+/// The built-in scene `name` at its initial state, as a world (multibody 0 the scene's
+/// multibody, named `name`).
+pub fn scene_world(name: &str) -> Result<World, SceneError> {
+    let mut builder = ModelBuilder::new();
+    builder.name(name);
+    let mut ground = Some(Vec3::z());
+    let mut contact = ContactParameters::default();
+    let mut limits = JointLimitParameters::default();
+    let mut loops = Vec::new();
+    let (mut h, mut poses, mut velocities) = (0.005, Vec::new(), Vec::new());
+    let mut hinge_q: Vec<f64> = Vec::new();
+    let identity = Mat3::identity();
+    match name {
+        "box-drop" => {
+            builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
+            let r = axis_angle(&Vec3::new(1.0, 0.5, 0.0).normalize(), 0.5);
+            poses.push((Vec3::new(0.0, 0.0, 0.3), r));
+            velocities.push((Vec3::new(1.0, 0.2, -1.0), Vec3::new(0.0, 0.0, 2.0)));
+            contact.restitution = 0.2;
         }
-        let model = builder.build()?;
-        let data = Data::new(&model);
-        let mut q = model.neutral_configuration();
-        let mut v = DVector::zeros(model.nv());
-        for (k, (pose, velocity)) in poses.into_iter().zip(velocities).enumerate() {
-            set_free(&mut q, &mut v, k, pose, velocity);
+        "box-flat" => {
+            builder.add_body(boxed("box", 2.0, Vec3::new(0.4, 0.3, 0.2)));
+            poses.push((Vec3::new(0.0, 0.0, 0.0995), identity));
+            velocities.push((Vec3::new(0.5, 0.2, 0.0), Vec3::zeros()));
+            contact.mu = 0.0;
         }
-        for (k, x) in hinge_q.into_iter().enumerate() {
-            q[k] = x;
+        "stack2" | "stack10" => {
+            let count = if name == "stack2" { 2 } else { 10 };
+            let size = Vec3::new(0.3, 0.3, 0.1);
+            for k in 0..count {
+                builder.add_body(boxed(&format!("box{k}"), 1.0, size));
+                let r = axis_angle(&Vec3::z(), 0.1 * k as f64);
+                let offset = Vec3::new(0.01 * (k % 3) as f64, -0.01 * (k % 2) as f64, 0.0);
+                poses.push((offset + Vec3::z() * (0.05 + 0.1 * k as f64 - 0.0005 * (k + 1) as f64), r));
+                velocities.push((Vec3::zeros(), Vec3::zeros()));
+            }
+            contact.mu = 0.6;
         }
-        let mut collision = CollisionWorld::new(CollisionOptions::default());
-        let multibody = collision.add_model(&model, &MeshOptions::default())?;
-        collision.set_self_collision(multibody, true)?;
-        if let Some(normal) = ground {
-            collision.add_static(
-                "ground",
-                &Shape::HalfSpace { normal },
-                Transform::identity(),
-                &MeshOptions::default(),
-            )?;
+        "sphere-incline" => {
+            let radius = 0.1;
+            builder.add_body(
+                BodySpec::new(
+                    "ball",
+                    "universe",
+                    Joint::Free,
+                    Transform::identity(),
+                    RigidInertia::solid_sphere(1.0, radius),
+                )
+                .with_collision(Shape::Sphere { radius }, Transform::identity()),
+            );
+            let slope = 20f64.to_radians();
+            let normal = Vec3::new(slope.sin(), 0.0, slope.cos());
+            ground = Some(normal);
+            let down = Vec3::new(-slope.cos(), 0.0, slope.sin());
+            poses.push((normal * (radius - 0.0005), identity));
+            velocities.push((down * 0.5, Vec3::zeros()));
+            contact.mu = 0.3;
         }
-        let builder = ProblemBuilder::new(model.nv(), FrictionModel::Cone);
-        Ok(Self {
-            name: name.to_string(),
-            v_free: DVector::zeros(model.nv()),
-            model,
-            data,
-            q,
-            v,
-            h,
-            step: 0,
-            contact,
-            limits,
-            loops,
-            friction: FrictionModel::Cone,
-            collision,
-            multibody,
-            builder,
-            contacts: Vec::new(),
-        })
+        "four-bar" => {
+            // The linkage of `four_bar.rs`: its chain, its closure, its closed configuration.
+            let (a, b, c, _) = FOUR_BAR_LENGTHS;
+            let at = |x: f64| Transform::from_translation(Vec3::new(x, 0.0, 0.0));
+            builder.add_body(rod("crank", "universe", at(0.0), a));
+            builder.add_body(rod("coupler", "crank", at(a), b));
+            builder.add_body(rod("rocker", "coupler", at(b), c));
+            hinge_q = four_bar_closed_angles(FOUR_BAR_CRANK_ANGLE).to_vec();
+            loops.push(four_bar_closure());
+            ground = None;
+            h = 0.01;
+        }
+        "limit-pendulum" => {
+            let limits_spec =
+                JointLimits { lower: vec![-0.5], upper: vec![0.3], velocity: vec![], effort: vec![] };
+            builder.add_body(rod("arm", "universe", Transform::identity(), 1.0).with_limits(limits_spec));
+            hinge_q = vec![0.0];
+            limits.restitution = 0.3;
+            ground = None;
+            h = 0.01;
+        }
+        other => return Err(SceneError::Unknown(other.to_string())),
     }
-
-    /// The contacts found by the last [`Scene::problem`].
-    pub fn contacts(&self) -> &[Contact] {
-        &self.contacts
+    let model = builder.build()?;
+    let mut q = model.neutral_configuration();
+    let mut v = DVector::zeros(model.nv());
+    for (k, (pose, velocity)) in poses.into_iter().zip(velocities).enumerate() {
+        set_free(&mut q, &mut v, k, pose, velocity);
     }
-
-    /// Builds the constraint problem of the current step into `problem`: kinematics, collision
-    /// detection, the free velocity, the rows and the Delassus matrix.
-    pub fn problem(&mut self, problem: &mut ConstraintProblem) -> Result<(), SceneError> {
-        let (model, data, step) = (&self.model, &mut self.data, self.step);
-        let dynamics = |source| SceneError::Dynamics { step, source };
-        compute_joint_jacobians(model, data, &self.q).map_err(dynamics)?;
-        self.collision.update_multibody(self.multibody, data)?;
-        self.contacts.clear();
-        self.contacts.extend_from_slice(self.collision.detect());
-        let tau = DVector::zeros(model.nv());
-        let ddq = aba(model, data, &self.q, &self.v, &tau).map_err(dynamics)?;
-        self.v_free = &self.v + ddq * self.h;
-        crba(model, data, &self.q).map_err(dynamics)?;
-        factor_mass_matrix(model, data).map_err(dynamics)?;
-        self.builder.clear();
-        self.builder.friction = self.friction;
-        let contact = self.contact;
-        add_contact_rows(
-            &mut self.builder,
-            &[(model, data)],
-            &[0],
-            &self.contacts,
-            0,
-            &self.v,
-            self.h,
-            |_| contact,
-        );
-        add_joint_limit_rows(&mut self.builder, model, &self.q, &self.v, 0, self.h, &self.limits);
-        for (k, c) in self.loops.iter().enumerate() {
-            add_loop_closure_rows(&mut self.builder, model, data, 0, c, k, self.h);
-        }
-        assemble_single(&self.builder, model, data, &self.v_free, problem);
-        Ok(())
+    for (k, x) in hinge_q.into_iter().enumerate() {
+        q[k] = x;
     }
-
-    /// Ends the step with impulses `lambda` for the `problem` of [`Scene::problem`]:
-    /// `v = v_free + M⁻¹Jᵀλ`, `q ← q ⊕ h·v`.
-    pub fn advance(&mut self, problem: &ConstraintProblem, lambda: &DVector<f64>) {
-        self.v.copy_from(&self.v_free);
-        if problem.rows() > 0 {
-            self.v.gemv(1.0, &problem.minv_jt, lambda, 1.0);
-        }
-        let q = self.q.clone();
-        self.model.integrate(&q, &self.v, self.h, &mut self.q);
-        self.model.normalize(&mut self.q);
-        self.step += 1;
+    let mut options = WorldOptions {
+        dt: h,
+        solvers: vec![SolverKind::Clarabel],
+        friction: FrictionModel::Cone,
+        contact,
+        limits,
+        mass_matrix_reuse: None,
+        ..WorldOptions::default()
+    };
+    options.sleep.enabled = false;
+    let mut world = World::new(options);
+    let m = world.add_multibody(name, model, &MeshOptions::default())?;
+    world.set_self_collision(m, true)?;
+    if let Some(normal) = ground {
+        world.add_static("ground", &Shape::HalfSpace { normal }, Transform::identity(), 0)?;
     }
-
-    /// One whole step with clarabel's impulses; `problem` and `lambda` hold the step's problem
-    /// and impulses afterwards.
-    pub fn step(
-        &mut self,
-        problem: &mut ConstraintProblem,
-        lambda: &mut DVector<f64>,
-    ) -> Result<(), SceneError> {
-        self.problem(problem)?;
-        ClarabelSolver::default()
-            .solve(problem, lambda)
-            .map_err(|source| SceneError::Solver { step: self.step, source })?;
-        self.advance(problem, lambda);
-        Ok(())
+    for closure in loops {
+        world.add_loop(m, closure)?;
     }
+    let state = &mut world.multibody_mut(m).state;
+    state.q.copy_from(&q);
+    state.v.copy_from(&v);
+    Ok(world)
 }
