@@ -467,58 +467,89 @@ impl World {
         timer.lap(Phase::Kinematics);
         stages::collision::run(&mut self.bodies, &self.names, &mut self.collision, &mut self.contacts)?;
         timer.lap(Phase::Collision);
-        // A smooth step (no inequality rows, an integrator chosen) skips rows and solve and
-        // integrates with the chosen scheme (smooth.rs).
+        let smooth = self.prepare_smooth_step();
+        let has_rows = self.free_motion(h, smooth)?;
+        timer.lap(Phase::FreeMotion);
+        let solve = self.rows_and_problem(h, has_rows && !smooth);
+        timer.lap(Phase::Rows);
+        let report = if solve { Some(self.solve_problem()?) } else { None };
+        let report = self.speculation_passes(h, report)?;
+        timer.lap(Phase::Solve);
+        self.integrate(h, smooth)?;
+        self.sleep(h);
+        let diagnostics = self.diagnostics();
+        timer.lap(Phase::Integrate);
+        self.record_stats(report, diagnostics, timer, smooth);
+        Ok(&self.stats)
+    }
+
+    /// Whether this step is smooth (no inequality rows, an integrator chosen: see [`smooth`]);
+    /// if so, its steppers are ready.
+    fn prepare_smooth_step(&mut self) -> bool {
         let smooth = smooth::applies(&self.options, &self.bodies, &self.contacts, &self.loops.closures);
         if smooth {
             self.smooth.prepare(self.options.integrator, &self.bodies, &self.loops.closures);
         }
-        let has_rows = stages::rows::needed(
-            &self.bodies,
-            &self.contacts,
-            &self.loops.closures,
-            self.options.limits.margin,
-        );
+        smooth
+    }
+
+    /// Stage 4: the free motion (see [`stages::free_motion`]); returns whether the step may have
+    /// rows.
+    fn free_motion(&mut self, h: f64, smooth: bool) -> Result<bool, StepError> {
+        let margin = self.options.limits.margin;
+        let has_rows = stages::rows::needed(&self.bodies, &self.contacts, &self.loops.closures, margin);
         let reuse = self.options.mass_matrix_reuse;
         stages::free_motion::run(&mut self.bodies, &self.names, &mut self.dofs, h, has_rows, smooth, reuse)?;
-        timer.lap(Phase::FreeMotion);
+        Ok(has_rows)
+    }
+
+    /// Stage 5: the step's rows (none unless `rows`) and their problem; returns whether there is
+    /// a problem to solve.
+    fn rows_and_problem(&mut self, h: f64, rows: bool) -> bool {
         self.speculation.reset(self.contacts.len());
-        if has_rows && !smooth {
+        if rows {
             self.assemble_rows(h, false);
         } else {
             self.rows.clear();
         }
-        let first = !self.rows.builder.is_empty();
-        if first {
+        let solve = !self.rows.builder.is_empty();
+        if solve {
             self.build_problem();
         } else {
             self.solve.clear(self.options.friction);
         }
-        timer.lap(Phase::Rows);
-        let report = if first { Some(self.solve_problem()?) } else { None };
-        let report = self.speculation_passes(h, report)?;
-        timer.lap(Phase::Solve);
-        let smooth_steppers = smooth.then_some(&mut self.smooth);
+        solve
+    }
+
+    /// Stage 8: every multibody's new state (see [`stages::integrate`]), committed with the
+    /// world's time.
+    fn integrate(&mut self, h: f64, smooth: bool) -> Result<(), StepError> {
+        let steppers = smooth.then_some(&mut self.smooth);
         let (v, projection) = (&self.dofs.v_free, &self.options.loop_projection);
-        stages::integrate::run(
-            &mut self.bodies,
-            &self.names,
-            v,
-            &mut self.loops,
-            smooth_steppers,
-            projection,
-            h,
-        )?;
+        stages::integrate::run(&mut self.bodies, &self.names, v, &mut self.loops, steppers, projection, h)?;
         stages::integrate::commit(&mut self.bodies, h);
         self.time += h;
         self.steps += 1;
+        Ok(())
+    }
+
+    /// Puts idle islands to sleep, if sleeping is on (see [`sleep`]).
+    fn sleep(&mut self, h: f64) {
         if self.options.sleep.enabled {
             let (contacts, closures) = (&self.contacts, &self.loops.closures);
             let (bodies, collision) = (&mut self.bodies, &mut self.collision);
             sleep::update(&self.options.sleep, h, bodies, contacts, closures, collision, &mut self.islands);
         }
-        let diagnostics = self.diagnostics();
-        timer.lap(Phase::Integrate);
+    }
+
+    /// The statistics of the step just taken.
+    fn record_stats(
+        &mut self,
+        report: Option<ChainReport>,
+        diagnostics: stats::Diagnostics,
+        timer: PhaseTimer,
+        smooth: bool,
+    ) {
         let integrator =
             if smooth { smooth::integrator_name(&self.options.integrator) } else { "semi-implicit-euler" };
         self.stats = StepStats::gather(
@@ -532,7 +563,6 @@ impl World {
             timer,
             integrator,
         );
-        Ok(&self.stats)
     }
 
     /// Stage 5: this step's rows into the builder (see [`stages::rows`]). `after_solve`: a
