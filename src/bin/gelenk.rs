@@ -24,9 +24,8 @@ enum Command {
     Inspect {
         /// URDF file.
         model: PathBuf,
-        /// Attach the root link by a free joint.
-        #[arg(long)]
-        floating: bool,
+        #[command(flatten)]
+        urdf: UrdfArgs,
         /// Print JSON instead of a table.
         #[arg(long)]
         json: bool,
@@ -35,9 +34,8 @@ enum Command {
     Dynamics {
         /// URDF file.
         model: PathBuf,
-        /// Attach the root link by a free joint.
-        #[arg(long)]
-        floating: bool,
+        #[command(flatten)]
+        urdf: UrdfArgs,
         /// JSON file `{"states":[{"q":[…],"v":[…],"a":[…],"tau":[…]}]}` (v, a, tau default to 0).
         #[arg(long)]
         states: PathBuf,
@@ -123,6 +121,31 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+}
+
+/// How `inspect` and `dynamics` read a URDF (gelenk::io::urdf::UrdfOptions).
+#[derive(clap::Args)]
+struct UrdfArgs {
+    /// Attach the root link by a free joint.
+    #[arg(long)]
+    floating: bool,
+    /// Make every loader warning (unknown element or attribute, inconsistent inertia, ...) an error.
+    #[arg(long)]
+    strict: bool,
+    /// Replace inconsistent link inertias by their balanced form (MuJoCo's balanceinertia).
+    #[arg(long)]
+    balance_inertia: bool,
+}
+
+impl UrdfArgs {
+    fn options(&self) -> UrdfOptions {
+        UrdfOptions {
+            floating_base: self.floating,
+            strict: self.strict,
+            balance_inertia: self.balance_inertia,
+            ..Default::default()
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -227,8 +250,8 @@ fn main() -> ExitCode {
     }
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Inspect { model, floating, json } => inspect(&model, floating, json),
-        Command::Dynamics { model, floating, states } => dynamics(&model, floating, &states),
+        Command::Inspect { model, urdf, json } => inspect(&model, &urdf.options(), json),
+        Command::Dynamics { model, urdf, states } => dynamics(&model, &urdf.options(), &states),
         Command::ExportProblems { scene, steps, out, friction, only } => {
             export_problems(&scene, steps, &out, &friction, &only)
         }
@@ -272,6 +295,11 @@ fn load(path: &Path, floating: bool) -> Result<Model, String> {
     gelenk::io::urdf::load_file(path, &options).map_err(|e| e.to_string())
 }
 
+/// The model and the loader's warnings.
+fn load_with_warnings(path: &Path, options: &UrdfOptions) -> Result<gelenk::io::urdf::Loaded, String> {
+    gelenk::io::urdf::load_file_with_warnings(path, options).map_err(|e| e.to_string())
+}
+
 fn joints_json(model: &Model) -> Vec<Value> {
     (1..model.nbodies())
         .map(|i| {
@@ -288,8 +316,8 @@ fn joints_json(model: &Model) -> Vec<Value> {
         .collect()
 }
 
-fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
-    let model = load(path, floating)?;
+fn inspect(path: &Path, options: &UrdfOptions, as_json: bool) -> Result<(), String> {
+    let gelenk::io::urdf::Loaded { model, warnings } = load_with_warnings(path, options)?;
     let massless = model.massless_subtrees();
     if as_json {
         let collision: Vec<Value> = collision_geometry(&model)
@@ -299,8 +327,12 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
                        "mesh_file": resolved})
             })
             .collect();
+        let warnings: Vec<Value> = warnings
+            .iter()
+            .map(|w| json!({"element": w.element, "line": w.line, "message": w.to_string()}))
+            .collect();
         let out = json!({"nq": model.nq(), "nv": model.nv(), "mass": model.total_mass(),
-                         "joints": joints_json(&model), "collision": collision});
+                         "joints": joints_json(&model), "collision": collision, "warnings": warnings});
         println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
     } else {
         println!(
@@ -354,6 +386,11 @@ fn inspect(path: &Path, floating: bool, as_json: bool) -> Result<(), String> {
                 g.shape.summary(),
                 file
             );
+        }
+    }
+    if !as_json {
+        for w in &warnings {
+            println!("warning: {w}");
         }
     }
     for i in massless {
@@ -507,8 +544,11 @@ fn vector(
     }
 }
 
-fn dynamics(path: &Path, floating: bool, states_path: &Path) -> Result<(), String> {
-    let model = load(path, floating)?;
+fn dynamics(path: &Path, options: &UrdfOptions, states_path: &Path) -> Result<(), String> {
+    let gelenk::io::urdf::Loaded { model, warnings } = load_with_warnings(path, options)?;
+    for w in &warnings {
+        eprintln!("gelenk: warning: {w}");
+    }
     let text = std::fs::read_to_string(states_path)
         .map_err(|e| format!("{}: cannot read: {e}", states_path.display()))?;
     let doc: Value =
