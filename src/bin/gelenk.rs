@@ -571,12 +571,16 @@ fn dynamics(path: &Path, options: &UrdfOptions, states_path: &Path) -> Result<()
         let nle = nonlinear_effects(&model, &mut data, &q, &v).map_err(fail)?.as_slice().to_vec();
         let gravity = generalized_gravity(&model, &mut data, &q).map_err(fail)?.as_slice().to_vec();
         let tau_id = rnea(&model, &mut data, &q, &v, &a).map_err(fail)?.as_slice().to_vec();
-        let ddq = aba(&model, &mut data, &q, &v, &tau).map_err(fail)?.as_slice().to_vec();
+        // A singular mass matrix (a massless moving subtree) leaves ABA undefined: null, with the reason.
+        let (ddq, aba_error) = match aba(&model, &mut data, &q, &v, &tau) {
+            Ok(a) => (Some(a.as_slice().to_vec()), None),
+            Err(e) => (None, Some(e.to_string())),
+        };
         let ke = kinetic_energy(&model, &mut data, &q, &v).map_err(fail)?;
         let pe = potential_energy(&model, &mut data, &q).map_err(fail)?;
         let com = center_of_mass(&model, &mut data, &q).map_err(fail)?;
         results.push(json!({
-            "mass_matrix": rows, "nle": nle, "gravity": gravity, "rnea": tau_id, "aba": ddq,
+            "mass_matrix": rows, "nle": nle, "gravity": gravity, "rnea": tau_id, "aba": ddq, "aba_error": aba_error,
             "kinetic_energy": ke, "potential_energy": pe, "com": [com.x, com.y, com.z],
             "mass": model.total_mass(),
         }));

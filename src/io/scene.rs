@@ -117,6 +117,8 @@
 //! | | `material` | material of every collider of the model (0) |
 //! | | `missing_meshes` | `"error"` (default) or `"skip"` collision meshes that cannot be found or read |
 //! | | `package_paths` | directories searched for `package://` URIs |
+//! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`]) (false) |
+//! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`]) (false) |
 //! | `[[body]]` | `shape` | `"box"` (`size = [x, y, z]`), `"sphere"` (`radius`), `"capsule"` or `"cylinder"` (`radius`, `length` along z) |
 //! | | `mass` or `density` | kg, or kg/m³ (density 1000) |
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |
@@ -127,7 +129,8 @@
 //! | | `material` | material index or name (0) |
 //! | | `fixed` | static geometry instead of a free body (false) |
 //! | `[[vehicle]]` | `multibody` | name of a floating `[[urdf]]` multibody to drive with [`crate::vehicle::Vehicle`] (required) |
-//! | | `front`, `rear` | hinge2 joints `[left, right]` (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `front`, `rear` | wheel joints `[left, right]`: hinge2 joints, or hinges spinning the wheels (on the chassis or on steering hinges) (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `driven` | `"rear"` (default), `"front"` or `"all"`: the wheels the throttle drives |
 //! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque`, `patch_contact` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
 //! | `[[vehicle.command]]` | `at` | simulated time (s) from which the command holds (required) |
 //! | | `speed` | throttle: target speed, m/s (releases the brakes) |
@@ -144,7 +147,7 @@ use crate::error::ModelError;
 use crate::io::urdf::{self, UrdfError, UrdfOptions};
 use crate::math::{Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape};
-use crate::vehicle::{Vehicle, VehicleConfig};
+use crate::vehicle::{Driven, Vehicle, VehicleConfig};
 use crate::world::{PoseServo, Servo, SolverKind, StepError, World, WorldOptions};
 use nalgebra::DMatrix;
 use rand::{Rng, SeedableRng};
@@ -1119,6 +1122,7 @@ struct VehicleSection {
     multibody: Spanned<String>,
     front: Option<[String; 2]>,
     rear: Option<[String; 2]>,
+    driven: Option<DrivenName>,
     wheel_radius: Option<Positive>,
     drive_torque: Option<Positive>,
     brake_torque: Option<Positive>,
@@ -1128,6 +1132,15 @@ struct VehicleSection {
     patch_contact: Option<bool>,
     #[serde(default)]
     command: Vec<Spanned<CommandSection>>,
+}
+
+/// `driven` of a `[[vehicle]]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum DrivenName {
+    Rear,
+    Front,
+    All,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -1300,6 +1313,10 @@ struct UrdfSection {
     missing_meshes: MissingMeshes,
     #[serde(default)]
     package_paths: Vec<String>,
+    #[serde(default)]
+    strict: bool,
+    #[serde(default)]
+    balance_inertia: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -1538,7 +1555,7 @@ fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
     }
     let mut warnings = Vec::new();
     for u in &doc.urdf {
-        b.urdf(&mut world, u)?;
+        warnings.extend(b.urdf(&mut world, u)?);
     }
     warnings.extend(world.collision().warnings().iter().cloned());
     for (i, body) in doc.body.iter().enumerate() {
@@ -1740,18 +1757,27 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn urdf(&mut self, world: &mut World, u: &Spanned<UrdfSection>) -> Result<(), SceneError> {
+    /// Adds the model(s) of a `[[urdf]]` entry; returns the URDF loader's warnings.
+    fn urdf(&mut self, world: &mut World, u: &Spanned<UrdfSection>) -> Result<Vec<String>, SceneError> {
         let span = u.span();
         let u = u.get_ref();
         let err = |message: String| self.src.invalid(span.clone(), message);
         let placement = pose(u.position, u.rpy, u.quaternion).map_err(err)?;
         let material = self.material_of(&u.material)?;
         let path = self.src.resolve(u.path.get_ref());
-        let options = UrdfOptions { floating_base: u.floating, ..UrdfOptions::default() };
-        let mut model = urdf::load_file(&path, &options).map_err(|source| SceneError::Urdf {
+        let options = UrdfOptions {
+            floating_base: u.floating,
+            strict: u.strict,
+            balance_inertia: u.balance_inertia,
+            ..UrdfOptions::default()
+        };
+        let loaded = urdf::load_file_with_warnings(&path, &options).map_err(|source| SceneError::Urdf {
             at: self.src.location(u.path.span()),
             source: Box::new(source),
         })?;
+        let mut model = loaded.model;
+        let file_name = u.path.get_ref();
+        let warnings: Vec<String> = loaded.warnings.iter().map(|w| format!("{file_name}: {w}")).collect();
         if !u.floating && (u.velocity.is_some() || u.angular_velocity.is_some()) {
             return Err(err("`velocity` and `angular_velocity` need `floating = true`".to_string()));
         }
@@ -1960,7 +1986,7 @@ impl Builder<'_> {
                 }
             }
         }
-        Ok(())
+        Ok(warnings)
     }
 
     fn vehicle(&self, world: &mut World, v: &Spanned<VehicleSection>) -> Result<ScriptedVehicle, SceneError> {
@@ -1974,6 +2000,12 @@ impl Builder<'_> {
         let config = VehicleConfig {
             front: v.front.clone().unwrap_or(defaults.front),
             rear: v.rear.clone().unwrap_or(defaults.rear),
+            driven: match v.driven {
+                None => defaults.driven,
+                Some(DrivenName::Rear) => Driven::Rear,
+                Some(DrivenName::Front) => Driven::Front,
+                Some(DrivenName::All) => Driven::All,
+            },
             wheel_radius: v.wheel_radius.map_or(defaults.wheel_radius, |x| x.0),
             drive_torque: v.drive_torque.map_or(defaults.drive_torque, |x| x.0),
             brake_torque: v.brake_torque.map_or(defaults.brake_torque, |x| x.0),

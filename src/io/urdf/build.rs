@@ -209,9 +209,11 @@ fn joint_bodies(
                 "a <gelenk> ball extension needs a spherical joint, not {kind_name}"
             )))
         }
-        (_, Some(_)) => return Err(joint_err(format!(
+        (_, Some(_)) => {
+            return Err(joint_err(format!(
             "a <gelenk> universal or hinge2 extension needs a revolute or continuous joint, not {kind_name}"
-        ))),
+        )))
+        }
         (JointType::Prismatic, None) => {
             body.joint = Joint::Slider { axis };
             body.limits = limits(&[range()?], velocity, effort, 1);
