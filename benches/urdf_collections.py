@@ -386,7 +386,7 @@ def stage_drop(rows, gelenk):
                 row["drop"] = (None, "no collision shape: nothing meets the ground (as in PyBullet)")
                 continue
             floating = not row["static_base"]
-            z = DROP_CLEARANCE - row["lowest"] if floating else 0.0
+            z = DROP_CLEARANCE - row["lowest"]
             scene.write_text(
                 SCENE.format(
                     dt=DROP_DT,
@@ -405,7 +405,7 @@ def stage_drop(rows, gelenk):
             ok = pen <= MAX_PENETRATION
             text = f"max penetration {pen * 100:.2f} cm" + ("" if ok else " (over 1 cm)")
             if not floating:
-                text += "; static base (mass 0, as PyBullet fixes it)"
+                text += "; fixed base (mass 0: PyBullet makes it static)"
             row["drop"] = (ok, text)
 
 

@@ -351,21 +351,25 @@ impl<'a, 'input> Reader<'a, 'input> {
             return self.warn(node, WarningKind::MissingValue { what, default: "no shape".into() });
         };
         let kinds: &[&str] = &["box", "cylinder", "capsule", "sphere", "mesh"];
-        let mut shapes = geometry.children().filter(|c| c.is_element() && c.tag_name().namespace().is_none());
-        let Some(s) = shapes.next() else {
+        // The first shape counts; a second one, and elements that are no shape, are read past.
+        let mut shape_node = None;
+        for c in geometry.children().filter(|c| c.is_element() && c.tag_name().namespace().is_none()) {
+            let tag = c.tag_name().name().to_string();
+            if !kinds.contains(&tag.as_str()) {
+                let kind =
+                    WarningKind::UnknownElement { tag, parent: "geometry".into(), known: kinds.join(", ") };
+                self.warn_in(geometry, c, kind)?;
+            } else if shape_node.is_some() {
+                self.warn_in(geometry, c, WarningKind::RepeatedElement { tag })?;
+            } else {
+                shape_node = Some(c);
+            }
+        }
+        let Some(s) = shape_node else {
             let what = "a shape in <geometry>".to_string();
             return self.warn(geometry, WarningKind::MissingValue { what, default: "no shape".into() });
         };
-        for extra in shapes {
-            let kind = WarningKind::RepeatedElement { tag: extra.tag_name().name().to_string() };
-            self.warn_in(geometry, extra, kind)?;
-        }
         let tag = s.tag_name().name();
-        if !kinds.contains(&tag) {
-            let known = kinds.join(", ");
-            let kind = WarningKind::UnknownElement { tag: tag.to_string(), parent: "geometry".into(), known };
-            return self.warn_in(node, s, kind);
-        }
         // A shape without its size is left out (urdfdom refuses the link).
         let shape = match tag {
             "box" => match self.vector::<3>(s, "size")? {
