@@ -96,7 +96,8 @@ pub(crate) fn update(
                 b.velocity_average = nalgebra::DVector::zeros(nv);
             }
             b.velocity_average.fill(0.0);
-            for sample in b.velocity_history.chunks_exact(nv) {
+            // nv = 0 (a fixed base without joints): the history is empty and the multibody idle.
+            for sample in b.velocity_history.chunks_exact(nv.max(1)) {
                 for (a, x) in b.velocity_average.iter_mut().zip(sample) {
                     *a += x;
                 }

@@ -100,7 +100,8 @@ fn median_ns(rounds: usize, pool: usize, mut f: impl FnMut(usize)) -> f64 {
 }
 
 fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> Result<(), String> {
-    let model = crate::load_urdf(path, floating)?;
+    let options = gelenk::io::urdf::UrdfOptions { floating_base: floating, ..Default::default() };
+    let model = gelenk::io::urdf::load_file(path, &options).map_err(|e| e.to_string())?;
     let mut data = Data::new(&model);
     let mut rng = rand::rngs::StdRng::seed_from_u64(42);
     const POOL: usize = 1000;

@@ -118,6 +118,8 @@
 //! | | `material` | material of every collider of the model (0) |
 //! | | `missing_meshes` | `"error"` (default) or `"skip"` collision meshes that cannot be found or read |
 //! | | `package_paths` | directories searched for `package://` URIs |
+//! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`]) (false) |
+//! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`]) (false) |
 //! | `[[body]]` | `shape` | `"box"` (`size = [x, y, z]`), `"sphere"` (`radius`), `"capsule"` or `"cylinder"` (`radius`, `length` along z) |
 //! | | `mass` or `density` | kg, or kg/m³ (density 1000) |
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |
@@ -128,7 +130,8 @@
 //! | | `material` | material index or name (0) |
 //! | | `fixed` | static geometry instead of a free body (false) |
 //! | `[[vehicle]]` | `multibody` | name of a floating `[[urdf]]` multibody to drive with [`crate::vehicle::Vehicle`] (required) |
-//! | | `front`, `rear` | hinge2 joints `[left, right]` (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `front`, `rear` | wheel joints `[left, right]`: hinge2 joints, or hinges spinning the wheels (on the chassis or on steering hinges) (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `driven` | `"rear"` (default), `"front"` or `"all"`: the wheels the throttle drives |
 //! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque`, `patch_contact` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
 //! | `[[vehicle.command]]` | `at` | simulated time (s) from which the command holds (required) |
 //! | | `speed` | throttle: target speed, m/s (releases the brakes) |

@@ -43,6 +43,7 @@ pub(super) struct VehicleSection {
     pub(super) multibody: Spanned<String>,
     pub(super) front: Option<[String; 2]>,
     pub(super) rear: Option<[String; 2]>,
+    pub(super) driven: Option<DrivenName>,
     pub(super) wheel_radius: Option<Positive>,
     pub(super) drive_torque: Option<Positive>,
     pub(super) brake_torque: Option<Positive>,
@@ -52,6 +53,15 @@ pub(super) struct VehicleSection {
     pub(super) patch_contact: Option<bool>,
     #[serde(default)]
     pub(super) command: Vec<Spanned<CommandSection>>,
+}
+
+/// `driven` of a `[[vehicle]]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum DrivenName {
+    Rear,
+    Front,
+    All,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -224,6 +234,10 @@ pub(super) struct UrdfSection {
     pub(super) missing_meshes: MissingMeshes,
     #[serde(default)]
     pub(super) package_paths: Vec<String>,
+    #[serde(default)]
+    pub(super) strict: bool,
+    #[serde(default)]
+    pub(super) balance_inertia: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
