@@ -5,7 +5,7 @@ use crate::collision::CollisionOptions;
 use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters, Speculation};
 use crate::integrators::IntegratorKind;
 use crate::math::Vec3;
-use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, PgsSolver, SolverChain};
+use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, NewtonSolver, PgsSolver, SolverChain};
 
 /// A solver of the chain, by kind.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -17,6 +17,8 @@ pub enum SolverKind {
     },
     /// clarabel on the convex relaxation.
     Clarabel,
+    /// Newton's method on the primal problem with a sparse Cholesky factorization.
+    Newton,
     /// Projected Gauss–Seidel.
     Pgs {
         /// Maximum sweeps.
@@ -32,15 +34,17 @@ impl SolverKind {
         match *self {
             SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
             SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
+            SolverKind::Newton => Box::new(NewtonSolver::default()),
             SolverKind::Pgs { iterations, omega } => Box::new(PgsSolver::new(iterations, 1e-10, omega, true)),
         }
     }
 
-    /// Parses `lemke`, `clarabel`, `pgs` or `pgsN` (N ≥ 1 sweeps).
+    /// Parses `lemke`, `clarabel`, `newton`, `pgs` or `pgsN` (N ≥ 1 sweeps).
     pub fn parse(name: &str) -> Option<Self> {
         match name {
             "lemke" => Some(SolverKind::Lemke { facets: 8 }),
             "clarabel" => Some(SolverKind::Clarabel),
+            "newton" => Some(SolverKind::Newton),
             "pgs" => Some(SolverKind::Pgs { iterations: 50, omega: 1.0 }),
             other => other
                 .strip_prefix("pgs")
