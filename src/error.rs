@@ -295,3 +295,42 @@ pub enum MjcfError {
         source: ModelError,
     },
 }
+
+/// Why a solver returned no solution.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum SolverError {
+    /// The problem's sizes or numbers are inconsistent.
+    #[error("invalid problem: {0}")]
+    InvalidProblem(String),
+    /// Lemke's method found an unbounded ray: the LCP has no solution it can reach.
+    #[error("Lemke: ray termination after {pivots} pivots (no solution reachable)")]
+    LemkeRay {
+        /// Pivots done.
+        pivots: usize,
+    },
+    /// Lemke's method ran out of pivots.
+    #[error("Lemke: pivot limit {pivots} reached")]
+    PivotLimit {
+        /// The limit.
+        pivots: usize,
+    },
+    /// A solution was found but its residual is above the tolerance.
+    #[error("{solver}: residual {residual:.3e} above tolerance {tolerance:.1e}")]
+    Inaccurate {
+        /// Solver name.
+        solver: String,
+        /// Residual reached (m/s).
+        residual: f64,
+        /// Tolerance asked (m/s).
+        tolerance: f64,
+    },
+    /// clarabel stopped without a solution.
+    #[error("clarabel: {status}")]
+    Clarabel {
+        /// clarabel's status.
+        status: String,
+    },
+    /// Every solver of a chain failed; the reasons in order.
+    #[error("every solver failed: {0}")]
+    AllFailed(String),
+}

@@ -32,6 +32,9 @@ pub struct RunOptions {
     /// Also record a [`Frame`] (body poses, contact points, energy) with every row, into
     /// [`Recording::frames`], for the glTF export and the player (`crate::viz`).
     pub record_frames: bool,
+    /// Relative softness of the rows instead of `[world] softness`
+    /// ([`crate::world::WorldOptions::softness`]).
+    pub softness: Option<f64>,
 }
 
 /// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
@@ -245,6 +248,14 @@ pub fn run(
             ));
         }
         scene.rebuild_with(options.dt, options.solvers.clone())?;
+    }
+    if let Some(softness) = options.softness {
+        if !(softness.is_finite() && softness >= 0.0) {
+            return Err(SceneError::Options(format!(
+                "softness must be finite and non-negative, got {softness}"
+            )));
+        }
+        scene.world.set_softness(softness);
     }
     let duration = options.duration.unwrap_or(scene.duration);
     if !(duration.is_finite() && duration >= 0.0) {

@@ -6,60 +6,25 @@
 
 mod chain;
 mod conic;
+mod friction;
 mod lemke;
+mod newton;
 mod pgs;
 pub mod residuals;
 mod subspace;
 
+/// Why a solver returned no solution (defined with the other error enums in [`crate::error`]).
+pub use crate::error::SolverError;
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};
 pub use lemke::{lcp_of, lemke, Lcp, LemkeOptions, LemkeSolver};
+pub use newton::NewtonSolver;
 pub use pgs::{PgsSolver, PgsWorkspace};
 pub use residuals::{residuals, QpResiduals, Residuals};
 
 use crate::constraints::{ConstraintProblem, RowLaw};
 use crate::math::all_finite;
 use nalgebra::DVector;
-use thiserror::Error;
-
-/// Why a solver returned no solution.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum SolverError {
-    /// The problem's sizes or numbers are inconsistent.
-    #[error("invalid problem: {0}")]
-    InvalidProblem(String),
-    /// Lemke's method found an unbounded ray: the LCP has no solution it can reach.
-    #[error("Lemke: ray termination after {pivots} pivots (no solution reachable)")]
-    LemkeRay {
-        /// Pivots done.
-        pivots: usize,
-    },
-    /// Lemke's method ran out of pivots.
-    #[error("Lemke: pivot limit {pivots} reached")]
-    PivotLimit {
-        /// The limit.
-        pivots: usize,
-    },
-    /// A solution was found but its residual is above the tolerance.
-    #[error("{solver}: residual {residual:.3e} above tolerance {tolerance:.1e}")]
-    Inaccurate {
-        /// Solver name.
-        solver: String,
-        /// Residual reached (m/s).
-        residual: f64,
-        /// Tolerance asked (m/s).
-        tolerance: f64,
-    },
-    /// clarabel stopped without a solution.
-    #[error("clarabel: {status}")]
-    Clarabel {
-        /// clarabel's status.
-        status: String,
-    },
-    /// Every solver of a chain failed; the reasons in order.
-    #[error("every solver failed: {0}")]
-    AllFailed(String),
-}
 
 /// Facts about one solve.
 #[derive(Clone, Debug, Default, PartialEq)]

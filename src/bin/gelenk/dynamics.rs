@@ -11,9 +11,8 @@ use std::path::{Path, PathBuf};
 pub struct DynamicsArgs {
     /// URDF file.
     model: PathBuf,
-    /// Attach the root link by a free joint.
-    #[arg(long)]
-    floating: bool,
+    #[command(flatten)]
+    urdf: crate::UrdfArgs,
     /// JSON file `{"states":[{"q":[…],"v":[…],"a":[…],"tau":[…]}]}` (v, a, tau default to 0).
     #[arg(long)]
     states: PathBuf,
@@ -21,7 +20,7 @@ pub struct DynamicsArgs {
 
 /// Runs `gelenk dynamics`.
 pub fn run(args: &DynamicsArgs) -> Result<(), String> {
-    dynamics(&args.model, args.floating, &args.states)
+    dynamics(&args.model, &args.urdf, &args.states)
 }
 
 fn vector(
@@ -51,8 +50,11 @@ fn vector(
     }
 }
 
-fn dynamics(path: &Path, floating: bool, states_path: &Path) -> Result<(), String> {
-    let model = crate::load_urdf(path, floating)?;
+fn dynamics(path: &Path, urdf: &crate::UrdfArgs, states_path: &Path) -> Result<(), String> {
+    let gelenk::io::urdf::Loaded { model, warnings } = crate::load_urdf(path, urdf)?;
+    for w in &warnings {
+        eprintln!("gelenk: warning: {w}");
+    }
     let text = std::fs::read_to_string(states_path)
         .map_err(|e| format!("{}: cannot read: {e}", states_path.display()))?;
     let doc: Value =
@@ -75,12 +77,16 @@ fn dynamics(path: &Path, floating: bool, states_path: &Path) -> Result<(), Strin
         let nle = nonlinear_effects(&model, &mut data, &q, &v).map_err(fail)?.as_slice().to_vec();
         let gravity = generalized_gravity(&model, &mut data, &q).map_err(fail)?.as_slice().to_vec();
         let tau_id = rnea(&model, &mut data, &q, &v, &a).map_err(fail)?.as_slice().to_vec();
-        let ddq = aba(&model, &mut data, &q, &v, &tau).map_err(fail)?.as_slice().to_vec();
+        // A singular mass matrix (a massless moving subtree) leaves ABA undefined: null, with the reason.
+        let (ddq, aba_error) = match aba(&model, &mut data, &q, &v, &tau) {
+            Ok(a) => (Some(a.as_slice().to_vec()), None),
+            Err(e) => (None, Some(e.to_string())),
+        };
         let ke = kinetic_energy(&model, &mut data, &q, &v).map_err(fail)?;
         let pe = potential_energy(&model, &mut data, &q).map_err(fail)?;
         let com = center_of_mass(&model, &mut data, &q).map_err(fail)?;
         results.push(json!({
-            "mass_matrix": rows, "nle": nle, "gravity": gravity, "rnea": tau_id, "aba": ddq,
+            "mass_matrix": rows, "nle": nle, "gravity": gravity, "rnea": tau_id, "aba": ddq, "aba_error": aba_error,
             "kinetic_energy": ke, "potential_energy": pe, "com": [com.x, com.y, com.z],
             "mass": model.total_mass(),
         }));

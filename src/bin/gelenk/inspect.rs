@@ -11,9 +11,8 @@ use std::path::PathBuf;
 pub struct InspectArgs {
     /// URDF file.
     model: PathBuf,
-    /// Attach the root link by a free joint.
-    #[arg(long)]
-    floating: bool,
+    #[command(flatten)]
+    urdf: crate::UrdfArgs,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -21,11 +20,14 @@ pub struct InspectArgs {
 
 /// Runs `gelenk inspect`.
 pub fn run(args: &InspectArgs) -> Result<(), String> {
-    let model = crate::load_urdf(&args.model, args.floating)?;
+    let gelenk::io::urdf::Loaded { model, warnings } = crate::load_urdf(&args.model, &args.urdf)?;
     if args.json {
-        print_json(&model)?;
+        print_json(&model, &warnings)?;
     } else {
         print_table(&model);
+        for w in &warnings {
+            println!("warning: {w}");
+        }
     }
     print_warnings(&model);
     Ok(())
@@ -48,7 +50,7 @@ pub fn joints_json(model: &Model) -> Vec<Value> {
         .collect()
 }
 
-fn print_json(model: &Model) -> Result<(), String> {
+fn print_json(model: &Model, warnings: &[gelenk::io::urdf::UrdfWarning]) -> Result<(), String> {
     let collision: Vec<Value> = collision_geometry(model)
         .map(|(g, resolved)| {
             json!({"body": model.body_name(g.body), "link": g.link, "shape": g.shape.kind_name(),
@@ -56,8 +58,12 @@ fn print_json(model: &Model) -> Result<(), String> {
                    "mesh_file": resolved})
         })
         .collect();
+    let warnings: Vec<Value> = warnings
+        .iter()
+        .map(|w| json!({"element": w.element, "line": w.line, "message": w.to_string()}))
+        .collect();
     let out = json!({"nq": model.nq(), "nv": model.nv(), "mass": model.total_mass(),
-                     "joints": joints_json(model), "collision": collision});
+                     "joints": joints_json(model), "collision": collision, "warnings": warnings});
     println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
     Ok(())
 }

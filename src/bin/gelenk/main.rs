@@ -89,8 +89,33 @@ fn main() -> ExitCode {
     }
 }
 
-/// Loads a URDF file, its root link attached by a free joint when `floating`.
-fn load_urdf(path: &Path, floating: bool) -> Result<Model, String> {
-    let options = UrdfOptions { floating_base: floating, ..Default::default() };
-    gelenk::io::urdf::load_file(path, &options).map_err(|e| e.to_string())
+/// How `inspect` and `dynamics` read a URDF ([`UrdfOptions`]).
+#[derive(clap::Args)]
+pub struct UrdfArgs {
+    /// Attach the root link by a free joint.
+    #[arg(long)]
+    floating: bool,
+    /// Make every loader warning (unknown element or attribute, inconsistent inertia, ...) an error.
+    #[arg(long)]
+    strict: bool,
+    /// Replace inconsistent link inertias by their balanced form (MuJoCo's balanceinertia).
+    #[arg(long)]
+    balance_inertia: bool,
+}
+
+impl UrdfArgs {
+    /// The loader options these arguments ask for.
+    fn options(&self) -> UrdfOptions {
+        UrdfOptions {
+            floating_base: self.floating,
+            strict: self.strict,
+            balance_inertia: self.balance_inertia,
+            ..Default::default()
+        }
+    }
+}
+
+/// Loads a URDF file with the loader's warnings.
+fn load_urdf(path: &Path, urdf: &UrdfArgs) -> Result<gelenk::io::urdf::Loaded, String> {
+    gelenk::io::urdf::load_file_with_warnings(path, &urdf.options()).map_err(|e| e.to_string())
 }

@@ -16,9 +16,13 @@ pub struct SimulateArgs {
     /// Time step (s) instead of the scene's.
     #[arg(long)]
     dt: Option<f64>,
-    /// Solver chain instead of the scene's, e.g. `pgs50`, `lemke,clarabel`.
+    /// Solver chain instead of the scene's, e.g. `pgs50`, `lemke,clarabel`, `newton`.
     #[arg(long)]
     solver: Option<String>,
+    /// Relative softness of contacts, limits, joint friction and motors instead of the
+    /// scene's (R_ii = s A_ii; 0: hard).
+    #[arg(long)]
+    softness: Option<f64>,
     /// Write the recorded states to FILE.csv or FILE.json.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -66,6 +70,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         solvers,
         record_every,
         record_frames: glb.is_some(),
+        softness: args.softness,
     };
     let terminal = std::io::stderr().is_terminal();
     let summary = scene::run(&mut loaded, &options, progress_bar(terminal)).map_err(|e| e.to_string())?;

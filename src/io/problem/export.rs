@@ -4,13 +4,11 @@
 //! `OUT/step-NNNN/` with its [`ProblemMeta`].
 
 use super::{write_problem, ProblemFileError, ProblemMeta};
-use crate::constraints::{ConstraintProblem, FrictionModel};
+use crate::constraints::FrictionModel;
 use crate::error::MjcfError;
 use crate::io::{mjcf, scene};
 use crate::scenes;
-use crate::solvers::{ClarabelSolver, ConstraintSolver};
 use crate::world::{StepError, World};
-use nalgebra::DVector;
 use std::path::Path;
 use thiserror::Error;
 
@@ -36,7 +34,7 @@ impl ExportOptions {
 /// Where exported problems come from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExportKind {
-    /// A built-in scene ([`crate::scenes::Scene`]), stepped with clarabel's impulses (the
+    /// A built-in scene ([`crate::scenes::scene_world`]: a world solved by clarabel alone, the
     /// reference solution).
     BuiltIn,
     /// A scene file (`.toml`), stepped by its world with its own solver chain; its vehicle
@@ -73,7 +71,7 @@ pub struct ExportedProblem<'a> {
 /// Why an export stopped.
 #[derive(Debug, Error)]
 pub enum ExportError {
-    /// The built-in scene does not exist or failed to pose its problem.
+    /// The built-in scene does not exist.
     #[error(transparent)]
     BuiltIn(#[from] scenes::SceneError),
     /// The scene file could not be loaded.
@@ -85,7 +83,7 @@ pub enum ExportError {
     /// The world refused the MJCF scene's geometry or the friction model.
     #[error(transparent)]
     World(#[from] StepError),
-    /// A step failed: the world's step or its controls, or clarabel on a built-in scene.
+    /// A step failed: the world's step or its controls.
     #[error("{scene} step {step}: {source}")]
     Step {
         /// Scene name (a file's stem).
@@ -103,69 +101,44 @@ pub enum ExportError {
 /// Steps `scene` (a built-in scene's name, a scene file or an MJCF file; see [`ExportKind::of`])
 /// for `options.steps` steps, writes the problem of every selected step that has rows into
 /// `out/step-NNNN/` ([`write_problem`]), calls `written` after each, and returns how many were
-/// written. A built-in scene goes on with clarabel's impulses; a file's world with its own
-/// solver chain, its problems written as posed (before the solve).
+/// written. Each world steps with its own solver chain (a built-in scene's: clarabel), and its
+/// problems are written as posed (before the solve).
 pub fn export_problems(
     scene: &str,
     out: &Path,
     options: &ExportOptions,
     written: impl FnMut(&ExportedProblem<'_>),
 ) -> Result<usize, ExportError> {
-    match ExportKind::of(scene) {
-        ExportKind::BuiltIn => export_built_in(scene, out, options, written),
-        kind => export_world(Path::new(scene), kind, out, options, written),
-    }
-}
-
-fn export_built_in(
-    name: &str,
-    out: &Path,
-    options: &ExportOptions,
-    mut written: impl FnMut(&ExportedProblem<'_>),
-) -> Result<usize, ExportError> {
-    let mut scene = scenes::Scene::new(name)?;
-    scene.friction = options.friction;
-    let mut problem = ConstraintProblem::default();
-    let mut lambda = DVector::zeros(0);
-    let mut count = 0;
-    for step in 0..options.steps {
-        scene.problem(&mut problem)?;
-        if problem.rows() > 0 && options.selects(step) {
-            let meta = ProblemMeta::compute(&scene.name, step, scene.h, &problem);
-            let dir = out.join(format!("step-{step:04}"));
-            write_problem(&dir, &problem, &meta)?;
-            written(&ExportedProblem { dir: &dir, meta: &meta, kind: ExportKind::BuiltIn });
-            count += 1;
-        }
-        ClarabelSolver::default().solve(&problem, &mut lambda).map_err(|e| ExportError::Step {
-            scene: scene.name.clone(),
-            step,
-            source: Box::new(e),
-        })?;
-        scene.advance(&problem, &lambda);
-    }
-    Ok(count)
+    export_world(scene, ExportKind::of(scene), out, options, written)
 }
 
 fn export_world(
-    path: &Path,
+    scene: &str,
     kind: ExportKind,
     out: &Path,
     options: &ExportOptions,
     mut written: impl FnMut(&ExportedProblem<'_>),
 ) -> Result<usize, ExportError> {
     enum Source {
+        /// A scene file: its controls (vehicle commands, servos) are applied before each step.
         Scene(Box<scene::Scene>),
-        Mjcf(Box<World>),
+        /// A world stepped as it is (an MJCF file, a built-in scene).
+        World(Box<World>),
     }
-    let mut source = if kind == ExportKind::SceneFile {
-        Source::Scene(Box::new(scene::load_file(path)?))
-    } else {
-        let loaded = mjcf::load_file(path)?;
-        let world_options = loaded.world_options();
-        Source::Mjcf(Box::new(loaded.into_world(world_options)?))
+    let path = Path::new(scene);
+    let mut source = match kind {
+        ExportKind::SceneFile => Source::Scene(Box::new(scene::load_file(path)?)),
+        ExportKind::Mjcf => {
+            let loaded = mjcf::load_file(path)?;
+            let world_options = loaded.world_options();
+            Source::World(Box::new(loaded.into_world(world_options)?))
+        }
+        ExportKind::BuiltIn => Source::World(Box::new(scenes::scene_world(scene)?)),
     };
-    let name = path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned());
+    let name = match kind {
+        ExportKind::BuiltIn => scene.to_string(),
+        _ => path.file_stem().map_or_else(|| "scene".to_string(), |s| s.to_string_lossy().into_owned()),
+    };
     let failed = |step: usize, source: Box<dyn std::error::Error + Send + Sync>| ExportError::Step {
         scene: name.clone(),
         step,
@@ -178,7 +151,7 @@ fn export_world(
                 scene.apply_controls().map_err(|e| failed(step, Box::new(e)))?;
                 &mut scene.world
             }
-            Source::Mjcf(world) => world,
+            Source::World(world) => world,
         };
         if step == 0 {
             world.set_friction(options.friction)?;

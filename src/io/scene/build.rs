@@ -5,13 +5,13 @@
 mod bodies;
 mod ground;
 
-use super::schema::{Document, VehicleSection};
+use super::schema::{Document, DrivenName, VehicleSection};
 use super::source::Source;
 use super::values::{Count, Finite, MaterialRef, NonNegative, V3};
 use super::{Location, RecordOptions, Scene, SceneError, ScriptedVehicle, TimedCommand, INTEGRATORS};
 use crate::constraints::{ContactParameters, JointLimitParameters};
 use crate::math::{Transform, Vec3};
-use crate::vehicle::{Vehicle, VehicleConfig};
+use crate::vehicle::{Driven, Vehicle, VehicleConfig};
 use crate::world::{SolverKind, StepError, World, WorldOptions};
 use std::collections::{HashMap, HashSet};
 use std::ops::Range;
@@ -56,6 +56,7 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
         friction: w.friction.map_or(defaults.friction, |f| f.0),
         solvers: w.solver.clone().map_or(defaults.solvers.clone(), |s| s.0),
         tolerance: w.tolerance.map_or(defaults.tolerance, |x| x.0),
+        softness: w.softness.map_or(defaults.softness, |x| x.0),
         accept_last: w.accept_last.unwrap_or(defaults.accept_last),
         contact: doc.contact.apply(ContactParameters::default()),
         ..defaults
@@ -119,7 +120,7 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
     }
     let mut warnings = Vec::new();
     for u in &doc.urdf {
-        b.urdf(&mut world, u)?;
+        warnings.extend(b.urdf(&mut world, u)?);
     }
     warnings.extend(world.collision().warnings().iter().cloned());
     for (i, body) in doc.body.iter().enumerate() {
@@ -217,6 +218,12 @@ impl Builder<'_> {
         let config = VehicleConfig {
             front: v.front.clone().unwrap_or(defaults.front),
             rear: v.rear.clone().unwrap_or(defaults.rear),
+            driven: match v.driven {
+                None => defaults.driven,
+                Some(DrivenName::Rear) => Driven::Rear,
+                Some(DrivenName::Front) => Driven::Front,
+                Some(DrivenName::All) => Driven::All,
+            },
             wheel_radius: v.wheel_radius.map_or(defaults.wheel_radius, |x| x.0),
             drive_torque: v.drive_torque.map_or(defaults.drive_torque, |x| x.0),
             brake_torque: v.brake_torque.map_or(defaults.brake_torque, |x| x.0),

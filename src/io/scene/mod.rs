@@ -78,8 +78,9 @@
 //! | `[world]` | `dt` | time step, s (0.002) |
 //! | | `duration` | simulated time of [`run`], s (1) |
 //! | | `gravity` | `[x, y, z]`, m/s² (`[0, 0, -9.81]`) |
-//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
+//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"newton"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
+//! | | `softness` | relative compliance of contacts, limits, joint friction and motors, `R_ii = s A_ii` ([`WorldOptions::softness`](crate::world::WorldOptions::softness); 0: hard) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
 //! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"pyramid:N"` means the same) (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
@@ -118,6 +119,8 @@
 //! | | `material` | material of every collider of the model (0) |
 //! | | `missing_meshes` | `"error"` (default) or `"skip"` collision meshes that cannot be found or read |
 //! | | `package_paths` | directories searched for `package://` URIs |
+//! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`]) (false) |
+//! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`]) (false) |
 //! | `[[body]]` | `shape` | `"box"` (`size = [x, y, z]`), `"sphere"` (`radius`), `"capsule"` or `"cylinder"` (`radius`, `length` along z) |
 //! | | `mass` or `density` | kg, or kg/m³ (density 1000) |
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |
@@ -128,7 +131,8 @@
 //! | | `material` | material index or name (0) |
 //! | | `fixed` | static geometry instead of a free body (false) |
 //! | `[[vehicle]]` | `multibody` | name of a floating `[[urdf]]` multibody to drive with [`crate::vehicle::Vehicle`] (required) |
-//! | | `front`, `rear` | hinge2 joints `[left, right]` (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `front`, `rear` | wheel joints `[left, right]`: hinge2 joints, or hinges spinning the wheels (on the chassis or on steering hinges) (`["front_left", "front_right"]`, `["rear_left", "rear_right"]`) |
+//! | | `driven` | `"rear"` (default), `"front"` or `"all"`: the wheels the throttle drives |
 //! | | `wheel_radius`, `drive_torque`, `brake_torque`, `steering_gain`, `steering_rate`, `steering_torque`, `patch_contact` | [`crate::vehicle::VehicleConfig`] (its `buggy()` values) |
 //! | `[[vehicle.command]]` | `at` | simulated time (s) from which the command holds (required) |
 //! | | `speed` | throttle: target speed, m/s (releases the brakes) |
@@ -419,7 +423,9 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
         .map(str::trim)
         .map(|name| {
             SolverKind::parse(name).ok_or_else(|| {
-                format!("unknown solver `{name}` (known: lemke, clarabel, pgs, pgsN with N >= 1 sweeps)")
+                format!(
+                    "unknown solver `{name}` (known: lemke, clarabel, newton, pgs, pgsN with N >= 1 sweeps)"
+                )
             })
         })
         .collect::<Result<Vec<_>, _>>()?;

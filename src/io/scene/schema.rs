@@ -43,6 +43,7 @@ pub(super) struct VehicleSection {
     pub(super) multibody: Spanned<String>,
     pub(super) front: Option<[String; 2]>,
     pub(super) rear: Option<[String; 2]>,
+    pub(super) driven: Option<DrivenName>,
     pub(super) wheel_radius: Option<Positive>,
     pub(super) drive_torque: Option<Positive>,
     pub(super) brake_torque: Option<Positive>,
@@ -52,6 +53,15 @@ pub(super) struct VehicleSection {
     pub(super) patch_contact: Option<bool>,
     #[serde(default)]
     pub(super) command: Vec<Spanned<CommandSection>>,
+}
+
+/// `driven` of a `[[vehicle]]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum DrivenName {
+    Rear,
+    Front,
+    All,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -72,6 +82,7 @@ pub(super) struct WorldSection {
     pub(super) gravity: Option<V3>,
     pub(super) solver: Option<SolverList>,
     pub(super) tolerance: Option<Positive>,
+    pub(super) softness: Option<NonNegative>,
     pub(super) accept_last: Option<bool>,
     pub(super) friction: Option<FrictionName>,
     pub(super) margin: Option<NonNegative>,
@@ -224,6 +235,10 @@ pub(super) struct UrdfSection {
     pub(super) missing_meshes: MissingMeshes,
     #[serde(default)]
     pub(super) package_paths: Vec<String>,
+    #[serde(default)]
+    pub(super) strict: bool,
+    #[serde(default)]
+    pub(super) balance_inertia: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]

@@ -15,18 +15,31 @@ use std::ops::Range;
 use toml::Spanned;
 
 impl Builder<'_> {
-    pub(super) fn urdf(&mut self, world: &mut World, u: &Spanned<UrdfSection>) -> Result<(), SceneError> {
+    /// Adds the model(s) of a `[[urdf]]` entry; returns the URDF loader's warnings.
+    pub(super) fn urdf(
+        &mut self,
+        world: &mut World,
+        u: &Spanned<UrdfSection>,
+    ) -> Result<Vec<String>, SceneError> {
         let span = u.span();
         let u = u.get_ref();
         let err = |message: String| self.src.invalid(span.clone(), message);
         let placement = pose(u.position, u.rpy, u.quaternion).map_err(err)?;
         let material = self.material_of(&u.material)?;
         let path = self.src.resolve(u.path.get_ref());
-        let options = UrdfOptions { floating_base: u.floating, ..UrdfOptions::default() };
-        let mut model = urdf::load_file(&path, &options).map_err(|source| SceneError::Urdf {
+        let options = UrdfOptions {
+            floating_base: u.floating,
+            strict: u.strict,
+            balance_inertia: u.balance_inertia,
+            ..UrdfOptions::default()
+        };
+        let loaded = urdf::load_file_with_warnings(&path, &options).map_err(|source| SceneError::Urdf {
             at: self.src.location(u.path.span()),
             source: Box::new(source),
         })?;
+        let mut model = loaded.model;
+        let file_name = u.path.get_ref();
+        let warnings: Vec<String> = loaded.warnings.iter().map(|w| format!("{file_name}: {w}")).collect();
         if !u.floating && (u.velocity.is_some() || u.angular_velocity.is_some()) {
             return Err(err("`velocity` and `angular_velocity` need `floating = true`".to_string()));
         }
@@ -202,7 +215,7 @@ impl Builder<'_> {
                 })?;
             }
         }
-        Ok(())
+        Ok(warnings)
     }
 
     pub(super) fn body(

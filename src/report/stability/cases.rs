@@ -1,271 +1,48 @@
-//! Numerical stability on hard cases: each [`Case`] is a scene plus a quantitative criterion,
-//! run through the [`World`] with one solver and one time step (a [`Setting`]) and returning
-//! the measured figure ([`Outcome`]). `tests/hard_cases.rs` asserts the criteria at chosen
-//! settings; [`run`] fills the table of every case × solver × dt that `gelenk report stability`
-//! writes as markdown and CSV — the same code measures both.
-//!
-//! A setting also names the world's integrator ([`WorldOptions::integrator`]): the default,
-//! semi-implicit Euler, is the velocity-level step throughout; another scheme advances the
-//! steps without contact ([`crate::world::smooth`]). Two criteria of the issue need it: the
-//! Dzhanibekov spin (energy and angular momentum to 1e-6) and the four-bar's energy drift
-//! ([`SMOOTH_CASES`], which the report also runs with [`SMOOTH_INTEGRATORS`]). The 100-link chain
-//! with a 1000:1 end mass (|ΔE/E| < 1e-6) is tested with RK4 outside the world, not a case.
+//! The hard cases of the stability report, one function per case (the scene and its
+//! measurement), and the scenes' helpers that tests use directly.
 
+use super::{options, Outcome, Setting};
 use crate::collision::MeshOptions;
-use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
-use crate::integrators::IntegratorKind;
+use crate::constraints::ContactParameters;
 use crate::math::{axis_angle, Mat3, Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape, Suspension};
-use crate::world::{integrator_name, SolverKind, StepError, World, WorldOptions};
+use crate::scenes::{four_bar_world, free_body};
+use crate::world::{StepError, World, WorldOptions};
 use nalgebra::{DVector, UnitQuaternion};
 
-/// One solver (alone in the chain, its answer always accepted), one time step and the world's
-/// integrator.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Setting {
-    /// The solver.
-    pub solver: SolverKind,
-    /// Time step (s).
-    pub dt: f64,
-    /// The integrator of steps without contact ([`WorldOptions::integrator`]).
-    pub integrator: IntegratorKind,
-}
-
-impl Setting {
-    /// Short solver label: `lemke`, `clarabel`, `pgs10`, `pgs50`.
-    pub fn solver_label(&self) -> String {
-        match self.solver {
-            SolverKind::Lemke { .. } => "lemke".into(),
-            SolverKind::Clarabel => "clarabel".into(),
-            SolverKind::Pgs { iterations, .. } => format!("pgs{iterations}"),
-        }
-    }
-
-    /// The setting of `solver` and `dt` with the world's default integrator (semi-implicit
-    /// Euler, the velocity-level step).
-    pub fn new(solver: SolverKind, dt: f64) -> Self {
-        Self { solver, dt, integrator: IntegratorKind::SemiImplicitEuler }
-    }
-}
-
-/// The cases without any contact, where the integrator decides the result: the report runs
-/// them with each of [`SMOOTH_INTEGRATORS`] too.
-pub const SMOOTH_CASES: [&str; 2] = ["dzhanibekov", "four_bar"];
-
-/// The integrators the report tries on [`SMOOTH_CASES`] besides the default.
-pub const SMOOTH_INTEGRATORS: [IntegratorKind; 1] = [IntegratorKind::Rk4];
-
-/// The solvers of the report: Lemke (8-facet pyramid), clarabel, PGS with 10 and 50 sweeps.
-pub const SOLVERS: [SolverKind; 4] = [
-    SolverKind::Lemke { facets: 8 },
-    SolverKind::Clarabel,
-    SolverKind::Pgs { iterations: 10, omega: 1.0 },
-    SolverKind::Pgs { iterations: 50, omega: 1.0 },
-];
-
-/// The time steps of the report (s).
-pub const TIME_STEPS: [f64; 3] = [1.0 / 60.0, 1.0 / 240.0, 1.0 / 1000.0];
-
-/// What a case measured.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Outcome {
-    /// The measured figure (in the case's unit).
-    pub figure: f64,
-    /// Whether the criterion holds.
-    pub pass: bool,
-    /// Secondary figures and observations (e.g. the cradle's final velocities).
-    pub detail: String,
-}
-
-/// A hard case: a scene and its criterion.
-#[derive(Clone, Copy, Debug)]
-pub struct Case {
-    /// Identifier (`stack10`, `cradle`, ...).
-    pub name: &'static str,
-    /// The criterion, in words, with its bound.
-    pub criterion: &'static str,
-    /// What [`Outcome::figure`] is.
-    pub figure: &'static str,
-    /// Whether Lemke's dense tableau is affordable (false: the report skips Lemke).
-    pub lemke: bool,
-    /// Runs the case.
-    pub run: fn(&Setting) -> Result<Outcome, StepError>,
-}
-
-/// Every case, in report order.
-pub const CASES: [Case; 15] = [
-    Case {
-        name: "stack10",
-        criterion: "10 boxes, 10 s: top drift < 1 % of the box (1 mm), penetration < margin",
-        figure: "top drift (m)",
-        // 40 contacts make a 400-variable LCP per step: with its restarts Lemke pivots for
-        // minutes per cell at 1/1000 s, as on the 20-stack and the pyramid.
-        lemke: false,
-        run: stack10,
-    },
-    Case {
-        name: "stack20",
-        criterion: "20 boxes, 10 s: top drift < 1 mm, penetration < margin",
-        figure: "top drift (m)",
-        lemke: false,
-        run: stack20,
-    },
-    Case {
-        name: "pyramid10",
-        criterion: "pyramid of 55 boxes (base 10), 2 s: top drift < 1 mm, penetration < margin",
-        figure: "top drift (m)",
-        lemke: false,
-        run: pyramid10,
-    },
-    Case {
-        name: "heavy_on_light",
-        criterion: "1000 kg box on a 1 kg box, 5 s: drift < 1 mm, penetration < margin",
-        figure: "top drift (m)",
-        lemke: true,
-        run: heavy_on_light,
-    },
-    Case {
-        name: "cradle",
-        criterion: "Newton's cradle, 5 balls, ε = 1: |Δp| < 1e-12, energy never grows",
-        figure: "|Δp| (kg·m/s)",
-        lemke: true,
-        run: cradle,
-    },
-    Case {
-        name: "dzhanibekov",
-        criterion: "T-body at ω = (10, 1, 0) rad/s, 10 s: |ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 %",
-        figure: "max(|ΔL|/L, |ΔE|/E)",
-        lemke: true,
-        run: dzhanibekov,
-    },
-    Case {
-        name: "four_bar",
-        criterion: "four-bar, 10 s: closure < 1e-8 m, |ΔE| < 1e-4 of the largest kinetic energy",
-        figure: "closure error (m)",
-        lemke: true,
-        run: four_bar,
-    },
-    Case {
-        name: "suspension",
-        criterion: "hinge2 suspension, k·dt²/m = 1e-2 … 1e4: amplitude never grows",
-        figure: "max |s − s₀| / |s₀|",
-        lemke: true,
-        run: suspension,
-    },
-    Case {
-        name: "ramp5",
-        criterion: "five boxes on a 20° ramp, μ = 0.25 … 0.5: stick iff μ ≥ tan θ (sliders within 5 %)",
-        figure: "boxes right (of 5)",
-        lemke: true,
-        run: ramp5,
-    },
-    Case {
-        name: "rolling_ball",
-        criterion: "ball on a 20° incline, μ = 0.3: a = (5/7) g sin θ ± 1 %",
-        figure: "relative error of a",
-        lemke: true,
-        run: rolling_ball,
-    },
-    Case {
-        name: "sliding_box",
-        criterion: "box at 2 m/s, μ = 0.5: stops after v₀²/(2μg) ± 2 %",
-        figure: "relative error of the distance",
-        lemke: true,
-        run: sliding_box,
-    },
-    Case {
-        name: "resting",
-        criterion: "box resting on the ground, 10 s: |v| < 1e-6 m/s",
-        figure: "max |v| (m/s)",
-        lemke: true,
-        run: resting,
-    },
-    Case {
-        name: "fast_sphere",
-        criterion: "1 cm sphere at 100 m/s against a 2 cm wall: does not tunnel",
-        figure: "v·dt / (thickness + 2r)",
-        lemke: true,
-        run: fast_sphere,
-    },
-    Case {
-        name: "far_origin",
-        criterion: "ball thrown with spin at a (1e6, 1e6, 1e6) m offset = at the origin within 1e-6 relative",
-        figure: "relative difference",
-        lemke: true,
-        run: far_origin,
-    },
-    Case {
-        name: "determinism",
-        criterion: "5 tumbling boxes: state hash after 1000 steps identical in two runs",
-        figure: "runs differing (0/1)",
-        lemke: true,
-        run: determinism,
-    },
-];
-
-/// The case named `name`.
-pub fn case(name: &str) -> Option<&'static Case> {
-    CASES.iter().find(|c| c.name == name)
-}
-
-/// World options of a setting: that solver alone (its answer accepted even above the
-/// tolerance, so that the cell measures the solver, not a fallback), sleeping off.
-pub fn options(setting: &Setting) -> WorldOptions {
-    let mut o = WorldOptions {
-        dt: setting.dt,
-        integrator: setting.integrator,
-        solvers: vec![setting.solver],
-        tolerance: 1e-8,
-        accept_last: true,
-        ..Default::default()
-    };
-    o.sleep.enabled = false;
-    o
-}
-
-fn steps(duration: f64, dt: f64) -> usize {
+pub(super) fn steps(duration: f64, dt: f64) -> usize {
     (duration / dt).round() as usize
 }
 
-/// A lone rigid body: a free joint and one collision shape.
-pub fn free_body(name: &str, shape: Shape, inertia: RigidInertia) -> Model {
-    let mut b = ModelBuilder::new();
-    b.add_body(
-        BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
-            .with_collision(shape, Transform::identity()),
-    );
-    b.build().expect("a lone free body is a valid model")
-}
-
-fn cube(side: f64, mass: f64) -> Model {
+pub(super) fn cube(side: f64, mass: f64) -> Model {
     let size = Vec3::repeat(side);
     free_body("box", Shape::Box { size }, RigidInertia::solid_box(mass, size))
 }
 
-fn ball(radius: f64, mass: f64) -> Model {
+pub(super) fn ball(radius: f64, mass: f64) -> Model {
     free_body("ball", Shape::Sphere { radius }, RigidInertia::solid_sphere(mass, radius))
 }
 
-fn add(w: &mut World, name: &str, model: Model) -> Result<usize, StepError> {
+pub(super) fn add(w: &mut World, name: &str, model: Model) -> Result<usize, StepError> {
     w.add_multibody(name, model, &MeshOptions::default())
 }
 
 /// Writes position `p` and rotation `r` into a free multibody's q.
-fn place(w: &mut World, m: usize, p: Vec3, r: UnitQuaternion<f64>) {
+pub(super) fn place(w: &mut World, m: usize, p: Vec3, r: UnitQuaternion<f64>) {
     let q = &mut w.multibody_mut(m).state.q;
     q.rows_mut(0, 3).copy_from(&p);
     q.rows_mut(3, 4).copy_from_slice(&[r.i, r.j, r.k, r.w]);
 }
 
-fn position(w: &World, m: usize) -> Vec3 {
+pub(super) fn position(w: &World, m: usize) -> Vec3 {
     w.multibody(m).state.q.fixed_rows::<3>(0).into()
 }
 
-fn rotation(q: &DVector<f64>) -> UnitQuaternion<f64> {
+pub(super) fn rotation(q: &DVector<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]))
 }
 
-fn ground(options: WorldOptions, normal: Vec3) -> Result<World, StepError> {
+pub(super) fn ground(options: WorldOptions, normal: Vec3) -> Result<World, StepError> {
     let mut w = World::new(options);
     w.add_static("ground", &Shape::HalfSpace { normal }, Transform::identity(), 0)?;
     Ok(w)
@@ -273,7 +50,7 @@ fn ground(options: WorldOptions, normal: Vec3) -> Result<World, StepError> {
 
 /// Steps a world whose `watched` multibody should stay put: the largest displacement of its
 /// origin from the start (m) and the deepest penetration seen (m).
-fn hold(w: &mut World, watched: usize, n: usize) -> Result<(f64, f64), StepError> {
+pub(super) fn hold(w: &mut World, watched: usize, n: usize) -> Result<(f64, f64), StepError> {
     let start = position(w, watched);
     let (mut drift, mut depth) = (0.0f64, 0.0f64);
     for _ in 0..n {
@@ -283,7 +60,7 @@ fn hold(w: &mut World, watched: usize, n: usize) -> Result<(f64, f64), StepError
     Ok((drift, depth))
 }
 
-fn held(drift: f64, depth: f64, margin: f64, size: f64) -> Outcome {
+pub(super) fn held(drift: f64, depth: f64, margin: f64, size: f64) -> Outcome {
     Outcome {
         figure: drift,
         pass: drift < 0.01 * size && depth < margin,
@@ -291,7 +68,7 @@ fn held(drift: f64, depth: f64, margin: f64, size: f64) -> Outcome {
     }
 }
 
-fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepError> {
+pub(super) fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepError> {
     let side = 0.1;
     let o = options(setting);
     let margin = o.collision.margin;
@@ -305,15 +82,15 @@ fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepError> {
     Ok(held(drift, depth, margin, side))
 }
 
-fn stack10(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn stack10(setting: &Setting) -> Result<Outcome, StepError> {
     stack(setting, 10)
 }
 
-fn stack20(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn stack20(setting: &Setting) -> Result<Outcome, StepError> {
     stack(setting, 20)
 }
 
-fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
     let (side, gap) = (0.1, 0.002);
     let o = options(setting);
     let margin = o.collision.margin;
@@ -330,7 +107,7 @@ fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
     Ok(held(drift, depth, margin, side))
 }
 
-fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
     let side = 0.1;
     let o = options(setting);
     let margin = o.collision.margin;
@@ -343,7 +120,7 @@ fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
     Ok(held(drift, depth, margin, side))
 }
 
-fn cradle(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn cradle(setting: &Setting) -> Result<Outcome, StepError> {
     // Five balls in a row without gravity: four touching, the first 5 cm away at 1 m/s, so
     // that its impact meets the touching four at once (a simultaneous impact).
     let mut o = options(setting);
@@ -418,18 +195,18 @@ pub fn dzhanibekov_reference_period(inertia: &Mat3, omega: Vec3, duration: f64) 
 /// Records the scheme a step used ([`crate::world::StepStats::integrator`]) once: a smooth case
 /// names in its detail which steps it took (a scheme without a closed-loop form leaves a
 /// linkage to the velocity-level step).
-fn note_scheme(schemes: &mut Vec<&'static str>, scheme: &'static str) {
+pub(super) fn note_scheme(schemes: &mut Vec<&'static str>, scheme: &'static str) {
     if !schemes.contains(&scheme) {
         schemes.push(scheme);
     }
 }
 
-fn flip_period(crossings: &[f64]) -> Option<f64> {
+pub(super) fn flip_period(crossings: &[f64]) -> Option<f64> {
     (crossings.len() >= 2)
         .then(|| 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64)
 }
 
-fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
     let inertia = t_body_inertia();
     let omega0 = Vec3::new(10.0, 1.0, 0.0);
     let duration = 10.0;
@@ -482,63 +259,7 @@ fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-/// The four-bar linkage of `tests/world.rs`: crank a = 0.15 m from the origin, coupler b =
-/// 0.35 m, rocker c = 0.30 m (a chain of three y-hinges) whose tip is closed by a hinge loop
-/// joint to the world point (d, 0, 0), d = 0.40 m; 1 kg rods. Returns the world and the
-/// multibody index, at the closed configuration with crank angle 1 rad.
-pub fn four_bar_world(options: WorldOptions) -> Result<(World, usize), StepError> {
-    let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
-    let rod = |name: &str, parent: &str, x: f64, length: f64| {
-        let i = length * length / 12.0;
-        let inertia = RigidInertia::new(
-            1.0,
-            Vec3::new(length / 2.0, 0.0, 0.0),
-            Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
-        );
-        BodySpec::new(
-            name,
-            parent,
-            Joint::hinge(Vec3::y()),
-            Transform::from_translation(Vec3::new(x, 0.0, 0.0)),
-            inertia,
-        )
-    };
-    let mut builder = ModelBuilder::new();
-    builder.add_body(rod("crank", "universe", 0.0, a));
-    builder.add_body(rod("coupler", "crank", a, b));
-    builder.add_body(rod("rocker", "coupler", b, c));
-    let model = builder.build().expect("the four-bar is a valid model");
-    // Closed configuration in 2-D coordinates (x, −z): a body turned by φ points along (cos φ, sin φ).
-    let phi1: f64 = 1.0;
-    let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
-    let o2 = nalgebra::Vector2::new(d, 0.0);
-    let dist = (o2 - p).norm();
-    let u = (o2 - p) / dist;
-    let l = (b * b - c * c + dist * dist) / (2.0 * dist);
-    let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
-    let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
-    let phi3 = (o2.y - tip.y).atan2(o2.x - tip.x);
-    let mut w = World::new(options);
-    let m = add(&mut w, "four-bar", model)?;
-    w.add_loop(
-        m,
-        LoopClosure {
-            body_a: 3,
-            frame_a: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
-            body_b: 0,
-            frame_b: Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
-            kind: LoopKind::Hinge { axis: Vec3::y() },
-            erp: 0.2,
-        },
-    )?;
-    let q = &mut w.multibody_mut(m).state.q;
-    q[0] = phi1;
-    q[1] = phi2 - phi1;
-    q[2] = phi3 - phi2;
-    Ok((w, m))
-}
-
-fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     let (mut w, m) = four_bar_world(options(setting))?;
     let e0 = w.total_energy();
     let (mut closure, mut de, mut kinetic) = (0.0f64, 0.0f64, 0.0f64);
@@ -566,7 +287,7 @@ fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
     let mass = 10.0;
     let mut worst = 0.0f64;
     let mut details = Vec::new();
@@ -606,7 +327,7 @@ fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
     let theta: f64 = 20f64.to_radians();
     let side = 0.1;
     let mus = [0.25, 0.33, 0.35, 0.40, 0.50];
@@ -676,7 +397,7 @@ pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), StepErr
     Ok((a, slip))
 }
 
-fn rolling_ball(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn rolling_ball(setting: &Setting) -> Result<Outcome, StepError> {
     let (a, slip) = ball_on_incline(setting, 0.3)?;
     let expected = 5.0 / 7.0 * 9.81 * 20f64.to_radians().sin();
     let error = (a - expected).abs() / expected;
@@ -709,7 +430,7 @@ pub fn sliding_distance(setting: &Setting, v0: f64) -> Result<(f64, f64), StepEr
     Ok((position(&w, m).x - start.x, hover))
 }
 
-fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
     let v0 = 2.0;
     let (d, hover) = sliding_distance(setting, v0)?;
     let expected = v0 * v0 / (2.0 * 0.5 * 9.81);
@@ -721,7 +442,7 @@ fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-fn resting(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn resting(setting: &Setting) -> Result<Outcome, StepError> {
     let mut w = ground(options(setting), Vec3::z())?;
     let side = 0.2;
     let m = add(&mut w, "box", cube(side, 1.0))?;
@@ -755,7 +476,7 @@ pub fn tunnels(setting: &Setting, speed: f64, r: f64, thickness: f64) -> Result<
     Ok(position(&w, m).x > 1.0 + thickness / 2.0)
 }
 
-fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
     let (speed, r, thickness) = (100.0, 0.01, 0.02);
     let through = tunnels(setting, speed, r, thickness)?;
     let ratio = speed * setting.dt / (thickness + 2.0 * r);
@@ -770,7 +491,7 @@ fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
 /// slides, then rolls; one contact, so the answer is unique — a box's four coplanar corners
 /// share friction non-uniquely, and 1e-10 m rounding at 1e6 m then picks another share). Its
 /// trajectory relative to the offset (position and quaternion per step).
-fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, StepError> {
+pub(super) fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, StepError> {
     let mut w = World::new(options(setting));
     w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::from_translation(offset), 0)?;
     let r = 0.1;
@@ -793,7 +514,7 @@ fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, StepError> 
     Ok(out)
 }
 
-fn far_origin(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn far_origin(setting: &Setting) -> Result<Outcome, StepError> {
     let near = far_run(setting, Vec3::zeros())?;
     let far = far_run(setting, Vec3::repeat(1e6))?;
     let travel = near.iter().map(|s| Vec3::new(s[0], s[1], s[2] - near[0][2]).norm()).fold(0.0, f64::max);
@@ -836,163 +557,7 @@ pub fn tumbling_hash(setting: &Setting) -> Result<u64, StepError> {
     Ok(state_hash(&w))
 }
 
-fn determinism(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn determinism(setting: &Setting) -> Result<Outcome, StepError> {
     let (a, b) = (tumbling_hash(setting)?, tumbling_hash(setting)?);
     Ok(Outcome { figure: f64::from(u8::from(a != b)), pass: a == b, detail: format!("hash {a:016x}") })
-}
-
-/// One cell of the report.
-#[derive(Clone, Debug)]
-pub struct Cell {
-    /// Case name.
-    pub case: &'static str,
-    /// Solver label.
-    pub solver: String,
-    /// Time step (s).
-    pub dt: f64,
-    /// Integrator name (`semi-implicit-euler`, `rk4`, ...).
-    pub integrator: &'static str,
-    /// The outcome, `None` when skipped (Lemke on large problems), or the step error.
-    pub outcome: Option<Result<Outcome, String>>,
-    /// Wall-clock seconds the cell took.
-    pub seconds: f64,
-}
-
-/// Runs `cases` for every solver of `solvers`, time step of `dts` and integrator of
-/// `integrators` (a case outside [`SMOOTH_CASES`] only with the first integrator: its steps
-/// have contacts, which the velocity-level step handles whatever the integrator), calling
-/// `progress` after each cell.
-pub fn run(
-    cases: &[Case],
-    solvers: &[SolverKind],
-    dts: &[f64],
-    integrators: &[IntegratorKind],
-    mut progress: impl FnMut(&Cell),
-) -> Vec<Cell> {
-    let mut cells = Vec::new();
-    for case in cases {
-        let used = if SMOOTH_CASES.contains(&case.name) {
-            integrators
-        } else {
-            &integrators[..1.min(integrators.len())]
-        };
-        for &dt in dts {
-            for (&solver, &integrator) in used.iter().flat_map(|i| solvers.iter().map(move |s| (s, i))) {
-                let setting = Setting { solver, dt, integrator };
-                let start = std::time::Instant::now();
-                let outcome = if matches!(solver, SolverKind::Lemke { .. }) && !case.lemke {
-                    None
-                } else {
-                    Some((case.run)(&setting).map_err(|e| e.to_string()))
-                };
-                let cell = Cell {
-                    case: case.name,
-                    solver: setting.solver_label(),
-                    dt,
-                    integrator: integrator_name(&integrator),
-                    outcome,
-                    seconds: start.elapsed().as_secs_f64(),
-                };
-                progress(&cell);
-                cells.push(cell);
-            }
-        }
-    }
-    cells
-}
-
-fn dt_label(dt: f64) -> String {
-    format!("1/{}", (1.0 / dt).round())
-}
-
-fn cell_text(cell: &Cell) -> String {
-    match &cell.outcome {
-        None => "skipped".into(),
-        Some(Err(_)) => "error".into(),
-        Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
-    }
-}
-
-/// The report as a markdown table (one row per case, dt and integrator, one column per solver)
-/// followed by the criteria and each cell's detail.
-pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
-    let mut solvers: Vec<String> = Vec::new();
-    for c in cells {
-        if !solvers.contains(&c.solver) {
-            solvers.push(c.solver.clone());
-        }
-    }
-    let mut out = format!(
-        "| case | dt (s) | integrator | {} |\n|---|---|---|{}\n",
-        solvers.join(" | "),
-        "---|".repeat(solvers.len())
-    );
-    let mut rows: Vec<(&str, u64, &str)> = Vec::new();
-    for c in cells {
-        let key = (c.case, c.dt.to_bits(), c.integrator);
-        if !rows.contains(&key) {
-            rows.push(key);
-        }
-    }
-    for (case, dt, integrator) in rows {
-        let texts: Vec<String> = solvers
-            .iter()
-            .map(|s| {
-                cells
-                    .iter()
-                    .find(|c| {
-                        c.case == case && c.dt.to_bits() == dt && c.integrator == integrator && &c.solver == s
-                    })
-                    .map_or("—".into(), cell_text)
-            })
-            .collect();
-        out += &format!(
-            "| {case} | {} | {integrator} | {} |\n",
-            dt_label(f64::from_bits(dt)),
-            texts.join(" | ")
-        );
-    }
-    out += "\nCriteria (the figure in each cell):\n\n";
-    for case in cases {
-        if cells.iter().any(|c| c.case == case.name) {
-            out += &format!("- `{}`: {} — figure: {}\n", case.name, case.criterion, case.figure);
-        }
-    }
-    out += "\nDetails:\n\n";
-    for c in cells {
-        let detail = match &c.outcome {
-            Some(Ok(o)) => o.detail.clone(),
-            Some(Err(e)) => format!("error: {e}"),
-            None => String::new(),
-        };
-        if !detail.is_empty() {
-            out += &format!("- {} {} dt {} {}: {}\n", c.case, c.solver, dt_label(c.dt), c.integrator, detail);
-        }
-    }
-    out
-}
-
-/// The report as CSV: `case,solver,dt,integrator,pass,figure,seconds,detail` (pass is
-/// `skipped` or `error` when the cell did not run).
-pub fn csv(cells: &[Cell]) -> String {
-    let mut out = String::from("case,solver,dt,integrator,pass,figure,seconds,detail\n");
-    for c in cells {
-        let (pass, figure, detail) = match &c.outcome {
-            None => ("skipped".to_string(), String::new(), String::new()),
-            Some(Err(e)) => ("error".to_string(), String::new(), e.clone()),
-            Some(Ok(o)) => (o.pass.to_string(), format!("{:e}", o.figure), o.detail.clone()),
-        };
-        out += &format!(
-            "{},{},{},{},{},{},{:.3},\"{}\"\n",
-            c.case,
-            c.solver,
-            c.dt,
-            c.integrator,
-            pass,
-            figure,
-            c.seconds,
-            detail.replace('"', "'")
-        );
-    }
-    out
 }

@@ -1,7 +1,7 @@
 //! The speed–error plot: one log–log panel per scene, error against cost, one curve per
 //! configuration, the scene's Pareto front in black, MuJoCo's points on the pendulum panel.
 
-use super::speed_error::{measures, pareto_front, ReportError, SpeedErrorReport, SCENES};
+use super::types::{measures, pareto_front, ReportError, SpeedErrorReport, SCENES};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;

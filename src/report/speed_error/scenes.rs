@@ -1,14 +1,15 @@
 //! The scenes of the speed–error report: smooth multibodies stepped by an [`Integrator`] and
 //! contact scenes stepped by the [`World`], each with its error measures.
 
-use super::speed_error::ReportError;
+use super::types::ReportError;
 use crate::algorithms::{kinetic_energy, potential_energy};
 use crate::collision::MeshOptions;
-use crate::constraints::{ContactParameters, LoopClosure, LoopKind};
+use crate::constraints::ContactParameters;
 use crate::data::Data;
 use crate::integrators::{DormandPrince45, IntegratorKind};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape};
+use crate::scenes::{four_bar_world, free_body};
 use crate::state::State;
 use crate::world::{SolverKind, World, WorldOptions};
 use nalgebra::{DVector, UnitQuaternion};
@@ -346,25 +347,6 @@ pub(crate) struct ContactRun {
     pub cost_us_per_s: f64,
 }
 
-fn free_body(name: &str, shape: Shape, inertia: RigidInertia) -> Result<Model, ReportError> {
-    let mut b = ModelBuilder::new();
-    b.add_body(
-        BodySpec::new(name, "universe", Joint::Free, Transform::identity(), inertia)
-            .with_collision(shape, Transform::identity()),
-    );
-    Ok(b.build()?)
-}
-
-fn rod(name: &str, parent: &str, placement: Transform, length: f64) -> BodySpec {
-    let i = length * length / 12.0;
-    let inertia = RigidInertia::new(
-        1.0,
-        Vec3::new(length / 2.0, 0.0, 0.0),
-        Mat3::from_diagonal(&Vec3::new(1e-4, i, i)),
-    );
-    BodySpec::new(name, parent, Joint::hinge(Vec3::y()), placement, inertia)
-}
-
 /// Builds the world of `scene` with step `dt` and solver chain `solvers`; returns it with the
 /// index of the body the measures follow.
 fn build_world(scene: ContactScene, dt: f64, solvers: &[SolverKind]) -> Result<World, ReportError> {
@@ -382,7 +364,7 @@ fn build_world(scene: ContactScene, dt: f64, solvers: &[SolverKind]) -> Result<W
             let r = 0.05;
             let ball = world.add_multibody(
                 "ball",
-                free_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r))?,
+                free_body("ball", Shape::Sphere { radius: r }, RigidInertia::solid_sphere(1.0, r)),
                 &meshes,
             )?;
             world.multibody_mut(ball).state.q[2] = r + 1.0;
@@ -394,7 +376,7 @@ fn build_world(scene: ContactScene, dt: f64, solvers: &[SolverKind]) -> Result<W
             let side = Vec3::repeat(0.2);
             let b = world.add_multibody(
                 "box",
-                free_body("box", Shape::Box { size: side }, RigidInertia::solid_box(1.0, side))?,
+                free_body("box", Shape::Box { size: side }, RigidInertia::solid_box(1.0, side)),
                 &meshes,
             )?;
             let state = &mut world.multibody_mut(b).state;
@@ -410,48 +392,14 @@ fn build_world(scene: ContactScene, dt: f64, solvers: &[SolverKind]) -> Result<W
                 let name = format!("box{k}");
                 let b = world.add_multibody(
                     &name,
-                    free_body(&name, Shape::Box { size: side }, RigidInertia::solid_box(0.5, side))?,
+                    free_body(&name, Shape::Box { size: side }, RigidInertia::solid_box(0.5, side)),
                     &meshes,
                 )?;
                 world.multibody_mut(b).state.q[2] = 0.05 + 0.1 * k as f64;
             }
         }
         ContactScene::FourBar => {
-            world = World::new(options);
-            // Crank a (hinged at the origin), coupler b, rocker c (hinged at (d, 0, 0)), all
-            // about y; the coupler's tip is joined to the rocker's by a loop hinge.
-            let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
-            let mut builder = ModelBuilder::new();
-            builder.add_body(rod("crank", "universe", Transform::identity(), a));
-            builder.add_body(rod("coupler", "crank", Transform::from_translation(Vec3::new(a, 0.0, 0.0)), b));
-            builder.add_body(rod(
-                "rocker",
-                "universe",
-                Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
-                c,
-            ));
-            let m = world.add_multibody("four_bar", builder.build()?, &meshes)?;
-            let phi1: f64 = 1.0;
-            let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
-            let o2 = nalgebra::Vector2::new(d, 0.0);
-            let dist = (o2 - p).norm();
-            let u = (o2 - p) / dist;
-            let l = (b * b - c * c + dist * dist) / (2.0 * dist);
-            let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
-            let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
-            let phi3 = (tip.y - o2.y).atan2(tip.x - o2.x);
-            world.multibody_mut(m).state.q.copy_from_slice(&[phi1, phi2 - phi1, phi3]);
-            world.add_loop(
-                m,
-                LoopClosure {
-                    body_a: 2,
-                    frame_a: Transform::from_translation(Vec3::new(b, 0.0, 0.0)),
-                    body_b: 3,
-                    frame_b: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
-                    kind: LoopKind::Hinge { axis: Vec3::y() },
-                    erp: 0.2,
-                },
-            )?;
+            world = four_bar_world(options)?.0;
         }
     }
     Ok(world)
