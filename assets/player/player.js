@@ -331,6 +331,14 @@ window.gelenkPlayer = {
     return !!node;
   },
   overlayCount() { return drawnContacts; },
+  state() {
+    const local = (v) => (world ? world.worldToLocal(v.clone()) : v.clone()).toArray();
+    return {
+      time, playing, speed, following, contacts: overlay.visible,
+      camera: local(camera.position), target: local(controls.target),
+      clock: $('clock').textContent, energy: $('energy-now').textContent, penetration: $('penetration-now').textContent,
+    };
+  },
 };
 
 ready.then(() => {

@@ -8,10 +8,13 @@
 //! zooms (wheel) and follows the bodies, the contact points and normals as an overlay, and plots
 //! of the total energy and the deepest penetration over time. It exposes `window.gelenkPlayer`
 //! for scripts and tests: `ready` (a promise), `bodies`, `times`, `duration`, `seek(t)`,
-//! `play()`, `pause()`, `setSpeed(s)`, `showContacts(on)`, `follow(on)`,
-//! `fit(fill)` (the camera on the bodies as they are, their box filling that fraction of the view, 0.8 by default), `project(x, y, z)` (a world point, z up, to `{x, y}` pixels of the page), `bodyPosition(name)`
-//! (the drawn body's origin, world frame), `highlight(name)` (draws one body flat magenta on top
-//! of everything; `null` restores) and `overlayCount()` (contact points drawn).
+//! `play()`, `pause()`, `setSpeed(s)`, `showContacts(on)`, `follow(on)`, `fit(fill)` (the
+//! camera on the bodies as they are, their box filling that fraction of the view, 0.8 by
+//! default), `project(x, y, z)` (a world point, z up, to `{x, y}` pixels of the page),
+//! `bodyPosition(name)` (the drawn body's origin, world frame), `highlight(name)` (draws one body
+//! flat magenta on top of everything; `null` restores), `overlayCount()` (contact points drawn)
+//! and `state()` (time, playing, speed, following, contacts shown, the camera's position and
+//! target in the world frame, and the clock's and the panel's texts).
 
 use super::gltf::glb_bytes;
 use super::{check_frames, focus, OutputFile, VizError};

@@ -193,6 +193,80 @@ impl Page {
         result["result"]["value"].clone()
     }
 
+    /// The bounding box of the first element that matches `selector`: (left, top, width,
+    /// height), CSS pixels.
+    pub fn rect(&mut self, selector: &str) -> (f64, f64, f64, f64) {
+        let selector = serde_json::to_string(selector).unwrap();
+        let r = self.eval(&format!(
+            "(() => {{ const r = document.querySelector({selector}).getBoundingClientRect(); \
+             return [r.left, r.top, r.width, r.height]; }})()"
+        ));
+        let r: Vec<f64> = r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        (r[0], r[1], r[2], r[3])
+    }
+
+    /// One mouse event at (x, y) CSS pixels: `kind` is `mouseMoved`, `mousePressed` or
+    /// `mouseReleased`; `button` is `none`, `left` or `right` (held while moving).
+    pub fn mouse(&mut self, kind: &str, (x, y): (f64, f64), button: &str) {
+        let held = match (kind, button) {
+            ("mouseReleased", _) => 0,
+            (_, "left") => 1,
+            (_, "right") => 2,
+            _ => 0,
+        };
+        let clicks = if kind == "mouseMoved" { 0 } else { 1 };
+        self.call(
+            "Input.dispatchMouseEvent",
+            json!({ "type": kind, "x": x, "y": y, "button": button, "buttons": held, "clickCount": clicks }),
+        );
+    }
+
+    /// A left click at `at`.
+    pub fn click(&mut self, at: (f64, f64)) {
+        self.mouse("mouseMoved", at, "none");
+        self.mouse("mousePressed", at, "left");
+        self.mouse("mouseReleased", at, "left");
+    }
+
+    /// Presses `button` at `from`, moves to `to` in ten steps and releases it there.
+    pub fn drag(&mut self, from: (f64, f64), to: (f64, f64), button: &str) {
+        self.mouse("mouseMoved", from, "none");
+        self.mouse("mousePressed", from, button);
+        for i in 1..=10 {
+            let s = i as f64 / 10.0;
+            self.mouse("mouseMoved", (from.0 + s * (to.0 - from.0), from.1 + s * (to.1 - from.1)), button);
+        }
+        self.mouse("mouseReleased", to, button);
+    }
+
+    /// A turn of the mouse wheel at `at` (`delta_y` > 0: towards the user).
+    pub fn wheel(&mut self, at: (f64, f64), delta_y: f64) {
+        self.call(
+            "Input.dispatchMouseEvent",
+            json!({ "type": "mouseWheel", "x": at.0, "y": at.1, "deltaX": 0, "deltaY": delta_y }),
+        );
+    }
+
+    /// Presses and releases a key: `key` as in KeyboardEvent.key (" " for the space bar,
+    /// "ArrowDown"), `code` as in KeyboardEvent.code, `key_code` the Windows virtual key code.
+    pub fn key(&mut self, key: &str, code: &str, key_code: u32) {
+        let printable = key.chars().count() == 1;
+        let down = if printable { "keyDown" } else { "rawKeyDown" };
+        let mut event = json!({ "type": down, "key": key, "code": code, "windowsVirtualKeyCode": key_code });
+        if printable {
+            event["text"] = Value::String(key.to_string());
+        }
+        self.call("Input.dispatchKeyEvent", event.clone());
+        event["type"] = Value::String("keyUp".to_string());
+        event.as_object_mut().unwrap().remove("text");
+        self.call("Input.dispatchKeyEvent", event);
+    }
+
+    /// Waits `milliseconds` of the page's time (its animation frames go on meanwhile).
+    pub fn wait(&mut self, milliseconds: u32) {
+        self.eval(&format!("new Promise((done) => setTimeout(() => done(true), {milliseconds}))"));
+    }
+
     /// A screenshot of the viewport: (width, height, RGBA pixels) and the PNG file's bytes.
     pub fn screenshot(&mut self) -> (Image, Vec<u8>) {
         use base64::Engine as _;
