@@ -304,6 +304,17 @@ impl Page {
 
 impl Drop for Page {
     fn drop(&mut self) {
+        // Closed by command, so that the browser ends its own processes; killed if it has not
+        // ended within 10 s.
+        self.next_id += 1;
+        let close = json!({ "id": self.next_id, "method": "Browser.close" });
+        let mut bytes = serde_json::to_vec(&close).unwrap();
+        bytes.push(0);
+        let _ = self.commands.write_all(&bytes);
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while matches!(self.child.try_wait(), Ok(None)) && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
         let _ = std::fs::remove_dir_all(&self.profile);
