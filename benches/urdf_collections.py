@@ -19,6 +19,11 @@ Stages (all by default; `--stages load,dynamics,drop`):
 - drop: every file PyBullet loads, as a floating base with its collision shapes and meshes, its
   lowest point 5 cm above a plane (from PyBullet's AABBs), 2 s at dt = 1/240 s through
   `gelenk simulate`: it passes without an error, a NaN, or a penetration of the ground beyond 1 cm.
+  As PyBullet does by default (without URDF_USE_INERTIA_FROM_FILE), link inertias come from the
+  collision shapes with the file's masses (`inertia_from_collision = true`); `package://` URIs
+  resolve in the share/ tree example-robot-data installs, as ROS's package path would; contacts
+  are found 2 cm apart (`margin`, Bullet's contact breaking threshold); joints start at 0, or at
+  the nearest limit where 0 is outside their limits (in PyBullet too, for its bounding boxes).
 
 `--out FILE` writes the per-file table (markdown) that docs/urdf_collections.md holds; the summary
 goes to stdout. `--filter TEXT` keeps files whose path contains TEXT.
@@ -43,6 +48,10 @@ TOL = 1e-9
 DROP_DT = 1.0 / 240.0
 DROP_DURATION = 2.0
 DROP_CLEARANCE = 0.05
+# Bullet's contact breaking threshold (m): contacts are found this far apart. gelenk's default
+# margin, 5 mm, is less than a step's travel at 1/240 s beyond 1.2 m/s (a humanoid's hands and
+# head as it topples), which then meet the ground undetected, 1 to 3 cm deep.
+DROP_MARGIN = 0.02
 MAX_PENETRATION = 0.01
 
 
@@ -123,8 +132,15 @@ def pybullet_load(client, path):
 
 
 def lowest_point(client, body):
-    """Lowest z of PyBullet's AABBs of the body's links, the model at the origin, joints at 0."""
+    """Lowest z of PyBullet's AABBs of the body's links, the model at the origin, each joint at 0
+    or, where 0 is outside its limits, at the nearest limit (where gelenk's scenes start it)."""
     import pybullet as p
+
+    for joint in range(p.getNumJoints(body, physicsClientId=client)):
+        info = p.getJointInfo(body, joint, physicsClientId=client)
+        lower, upper = info[8], info[9]
+        if info[2] in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC) and lower < upper and not lower <= 0.0 <= upper:
+            p.resetJointState(body, joint, min(max(0.0, lower), upper), physicsClientId=client)
 
     low = p.getAABB(body, -1, physicsClientId=client)[0][2]
     for link in range(p.getNumJoints(body, physicsClientId=client)):
@@ -244,12 +260,13 @@ def pinocchio_joints(model):
     return [(model.names[k], model.joints[k].nv, model.names[model.parents[k]]) for k in range(1, model.njoints)]
 
 
-def compare(model, gelenk, path, floating, rng, states=3):
+def compare(model, gelenk, path, floating, rng, row, states=3):
     """(agrees, max error, detail) of gelenk against Pinocchio on `states` random states.
 
     gelenk numbers sibling joints in the order the file lists them, Pinocchio (through urdfdom)
     by joint name: the joints must be the same (name, nv, parent joint), and vectors and M are
-    compared through the permutation by name."""
+    compared through the permutation by name. `row["joint_order_differs"]` says whether the two
+    orders differ."""
     import pinocchio as pin
 
     out, err = run([gelenk, "inspect", "--json", str(path)] + (["--floating"] if floating else []))
@@ -262,6 +279,7 @@ def compare(model, gelenk, path, floating, rng, states=3):
         n in by_name and by_name[n]["nv"] == nv and by_name[n]["parent"] == (p if p != "universe" else "universe")
         for n, nv, p in theirs
     )
+    row["joint_order_differs"] = [j["name"] for j in ours] != [t[0] for t in theirs]
     if not same:
         return False, math.inf, f"joints differ: gelenk {[j['name'] for j in ours][:4]}… Pinocchio {[t[0] for t in theirs][:4]}…"
     # perm[i]: gelenk's v index of Pinocchio's v index i.
@@ -339,16 +357,19 @@ def stage_dynamics(rows, gelenk):
             if model is None:
                 row[f"dyn_{key}"] = (False, math.inf, f"Pinocchio: {err}")
                 continue
-            row[f"dyn_{key}"] = compare(model, gelenk, row["path"], floating, rng)
+            row[f"dyn_{key}"] = compare(model, gelenk, row["path"], floating, rng, row)
 
 
 def summary_dynamics(rows):
     done = [r for r in rows.values() if "dyn_fixed" in r]
     agree = [r for r in done if r["dyn_fixed"][0] and r["dyn_floating"][0]]
     worst = max((max(r["dyn_fixed"][1], r["dyn_floating"][1]) for r in agree), default=0.0)
+    reordered = sum(1 for r in done if r.get("joint_order_differs"))
     lines = [
         f"dynamics: {len(agree)}/{len(done)} files Pinocchio loads agree (fixed and floating base) "
-        f"to {TOL:g}; worst error among them {worst:.1e}"
+        f"to {TOL:g}; worst error among them {worst:.1e}",
+        f"joint order: {reordered}/{len(done)} files list sibling joints other than by name, so gelenk "
+        f"(file order) and Pinocchio (siblings by name) number their joints differently (compared by name)",
     ]
     for r in done:
         for key in ("fixed", "floating"):
@@ -365,6 +386,7 @@ SCENE = """name = "drop"
 [world]
 dt = {dt!r}
 duration = {duration!r}
+margin = {margin!r}
 
 [[ground]]
 kind = "plane"
@@ -373,10 +395,20 @@ kind = "plane"
 path = {path}
 floating = {floating}
 position = [0, 0, {z!r}]
+inertia_from_collision = true
+package_paths = {package_paths}
 """
 
 
+def package_paths():
+    """Where ROS would find packages: the share/ tree example-robot-data installs (its ament
+    index lists example-robot-data, pinocchio, …), as ROS_PACKAGE_PATH or AMENT_PREFIX_PATH."""
+    erd = importlib.metadata.distribution("example-robot-data")
+    return [str(Path(erd.locate_file("cmeel.prefix/share")))]
+
+
 def stage_drop(rows, gelenk):
+    paths = json.dumps(package_paths())
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / "drop.toml"
         for row in rows.values():
@@ -391,12 +423,17 @@ def stage_drop(rows, gelenk):
                 SCENE.format(
                     dt=DROP_DT,
                     duration=DROP_DURATION,
+                    margin=DROP_MARGIN,
                     path=json.dumps(row["path"]),
                     floating=str(floating).lower(),
                     z=z,
+                    package_paths=paths,
                 )
             )
             out, err = run([gelenk, "simulate", "--json", str(scene)])
+            if out is None and "not finite" in err:
+                row["drop"] = (None, "its collision mesh has no finite vertex: no shape to collide (PyBullet loads an empty shape that falls through the plane)")
+                continue
             if out is None:
                 row["drop"] = (False, err)
                 continue
@@ -427,9 +464,11 @@ def summary_drop(rows):
     done = [r for r in rows.values() if "drop" in r and r["drop"][0] is not None]
     ok = [r for r in done if r["drop"][0]]
     skipped = [r for r in rows.values() if "drop" in r and r["drop"][0] is None]
+    reasons = collections.Counter(r["drop"][1].split(":")[0] for r in skipped)
     lines = [
         f"drop: {len(ok)}/{len(done)} files PyBullet loads (with a collision shape) fall 2 s on a plane "
-        f"without error, NaN or 1 cm penetration; {len(skipped)} have no collision shape"
+        f"without error, NaN or 1 cm penetration; {len(skipped)} have nothing to collide: "
+        + "; ".join(f"{n} {k}" for k, n in reasons.most_common())
     ]
     fails = collections.Counter(drop_failure(r["drop"][1]) for r in done if not r["drop"][0])
     for kind, n in fails.most_common():
@@ -453,8 +492,11 @@ def table(rows, stages, summary):
         "4.1 and PyBullet 3.2.7 load the file; whether gelenk loads it with its default (lenient) "
         "options and how many warnings it gives; the largest relative error of gelenk's M, nle, RNEA "
         "and ABA against Pinocchio's at 3 random states, fixed and floating base (must be ≤ 1e-9); "
-        "the 2 s drop on a plane (floating base, collision shapes and meshes, dt = 1/240 s; must "
-        "run without an error or NaN and penetrate the ground by at most 1 cm). The random objects "
+        "the 2 s drop on a plane (floating base, collision shapes and meshes, dt = 1/240 s, link "
+        "inertias computed from the collision shapes with the file's masses as PyBullet does by "
+        "default, `package://` resolved in example-robot-data's share/ tree, contact margin 2 cm as "
+        "Bullet's; must run without an "
+        "error or NaN and penetrate the ground by at most 1 cm). The random objects "
         "of pybullet_data (`random_urdfs/`, 1000 files) are one row. See [urdf.md](urdf.md).",
         "",
         "```",
@@ -501,14 +543,16 @@ def table(rows, stages, summary):
     if random_rows:
         n = len(random_rows)
         count = lambda f: sum(1 for r in random_rows if f(r))
-        failing = [r["file"].split("/")[-1] for r in random_rows if "drop" in r and not r["drop"][0]]
-        reasons = collections.Counter(drop_failure(r["drop"][1]) for r in random_rows if "drop" in r and not r["drop"][0])
+        failing = [r["file"].split("/")[-1] for r in random_rows if "drop" in r and r["drop"][0] is False]
+        reasons = collections.Counter(drop_failure(r["drop"][1]) for r in random_rows if "drop" in r and r["drop"][0] is False)
+        nothing = [r for r in random_rows if "drop" in r and r["drop"][0] is None]
         out.append(
             f"| pybullet_data/random_urdfs/*.urdf ({n} files) | {count(lambda r: r['pinocchio'])} | "
             f"{count(lambda r: r['pybullet'])} | {count(lambda r: r['gelenk'])} "
             f"({count(lambda r: r.get('warnings'))} with warnings) | — | "
             f"{count(lambda r: r.get('drop', (False,))[0])} pass"
             + (f"; {len(failing)} fail: " + "; ".join(f"{n} {k}" for k, n in reasons.most_common()) if failing else "")
+            + "".join(f"; n/a: {r['file'].split('/')[-1]}: {r['drop'][1]}" for r in nothing)
             + " |"
         )
     return "\n".join(out) + "\n"

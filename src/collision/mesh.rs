@@ -6,6 +6,13 @@
 //! `PKG` among them is the package root, and `DIR/PKG/REST` and `DIR/REST` are tried for each of
 //! the model's directory and its two parents); `file://PATH` and
 //! absolute paths are taken as they are; any other path is relative to the model's directory.
+//! `package:///REST` (an empty package name, as in example-robot-data's talos) is `REST` in each
+//! search path.
+//!
+//! A binary STL is told by its size (80-byte header, triangle count n, 50 bytes per triangle:
+//! 84 + 50 n bytes, as Bullet tells it), whatever its header says: CAD exporters often begin it
+//! with `solid`, which mesh-loader takes for ASCII. A vertex that is not finite makes the mesh
+//! unreadable.
 
 use crate::error::CollisionError;
 use crate::math::Vec3;
@@ -22,7 +29,7 @@ pub enum MissingMeshPolicy {
 }
 
 /// How mesh geometry becomes colliders.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MeshOptions {
     /// Directories searched for `package://` URIs (each may be a package's parent or the package itself).
     pub search_paths: Vec<PathBuf>,
@@ -100,7 +107,18 @@ pub fn load(link: &str, path: &Path, scale: &Vec3) -> Result<MeshData, Collision
         path: path.display().to_string(),
         message,
     };
-    let scene = mesh_loader::Loader::default().load(path).map_err(|e| unreadable(e.to_string()))?;
+    let bytes = std::fs::read(path).map_err(|e| unreadable(e.to_string()))?;
+    let loader = mesh_loader::Loader::default();
+    let scene = if is_stl(path) && is_binary_stl(&bytes) {
+        // mesh-loader takes a file that begins with `solid` for ASCII; many CAD exporters write
+        // that word into a binary header. The header carries nothing gelenk reads: blank it.
+        let mut bytes = bytes;
+        bytes[..STL_HEADER].fill(0);
+        loader.load_stl_from_slice(&bytes, path)
+    } else {
+        loader.load_from_slice(&bytes, path)
+    };
+    let scene = scene.map_err(|e| unreadable(e.to_string()))?;
     let mut mesh = MeshData::default();
     for part in &scene.meshes {
         let offset =
@@ -121,10 +139,29 @@ pub fn load(link: &str, path: &Path, scale: &Vec3) -> Result<MeshData, Collision
     if mesh.vertices.is_empty() {
         return Err(unreadable("the file holds no vertices".into()));
     }
-    if mesh.vertices.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
-        return Err(unreadable("a vertex is not finite".into()));
+    let bad = mesh.vertices.iter().filter(|v| !v.iter().all(|c| c.is_finite())).count();
+    if bad > 0 {
+        // No shape can be told from such a file: leaving out the triangles that use these
+        // vertices would collide with a shape the file does not describe.
+        return Err(unreadable(format!("{bad} of its {} vertices are not finite", mesh.vertices.len())));
     }
     Ok(mesh)
+}
+
+/// Bytes of a binary STL header, before the little-endian `u32` triangle count.
+const STL_HEADER: usize = 80;
+
+fn is_stl(path: &Path) -> bool {
+    path.extension().is_some_and(|e| e.eq_ignore_ascii_case("stl"))
+}
+
+/// Whether `bytes` has the size of a binary STL whose header gives its triangle count: 80 bytes
+/// of header, the count, 50 bytes per triangle. Bullet tells binary STL this way; an ASCII file
+/// never matches, as the count its bytes 80..84 would spell exceeds 500 million triangles.
+fn is_binary_stl(bytes: &[u8]) -> bool {
+    let Some(count) = bytes.get(STL_HEADER..STL_HEADER + 4) else { return false };
+    let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]) as usize;
+    count.checked_mul(50).and_then(|n| n.checked_add(STL_HEADER + 4)) == Some(bytes.len())
 }
 
 #[cfg(test)]
@@ -144,6 +181,24 @@ mod tests {
         // The package as a directory beside the model (PyBullet's xarm/xarm_description).
         let c = candidate_paths("package://xarm_description/meshes/a.stl", Some(Path::new("/p/xarm")), &[]);
         assert!(c.contains(&PathBuf::from("/p/xarm/xarm_description/meshes/a.stl")), "{c:?}");
+    }
+
+    #[test]
+    fn an_empty_package_name_resolves_in_the_search_paths() {
+        let c = candidate_paths("package:///erd/robots/talos/a.stl", None, &[PathBuf::from("/share")]);
+        assert_eq!(c, vec![PathBuf::from("/share/erd/robots/talos/a.stl")]);
+    }
+
+    #[test]
+    fn binary_stl_is_told_by_its_size() {
+        let mut bytes = b"solid part".to_vec();
+        bytes.resize(80, b' ');
+        bytes.extend_from_slice(&2u32.to_le_bytes());
+        bytes.resize(84 + 100, 0);
+        assert!(is_binary_stl(&bytes));
+        assert!(!is_binary_stl(&bytes[..183]));
+        let ascii = b"solid part\nfacet normal 0 0 1\n outer loop\n vertex 0 0 0\n vertex 1 0 0\n vertex 0 1 0\n endloop\nendfacet\nendsolid part\n";
+        assert!(!is_binary_stl(ascii));
     }
 
     #[test]

@@ -35,6 +35,7 @@
 
 mod broad_phase;
 mod convert;
+mod inertia;
 pub mod jacobian;
 pub mod mesh;
 mod narrow_phase;
@@ -42,6 +43,7 @@ pub mod reduce;
 mod shape;
 mod world;
 
+pub use inertia::SolidVolume;
 pub use jacobian::{
     add_angular_direction_row, add_point_direction_row, add_point_jacobian, add_point_rates_row,
     contact_frame, contact_jacobian, point_rates, tangents, JacobianRow,

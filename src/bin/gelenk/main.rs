@@ -101,6 +101,10 @@ pub struct UrdfArgs {
     /// Replace inconsistent link inertias by their balanced form (MuJoCo's balanceinertia).
     #[arg(long)]
     balance_inertia: bool,
+    /// Compute each link's rotational inertia from its collision shapes, keeping the file's mass
+    /// (PyBullet's default).
+    #[arg(long)]
+    inertia_from_collision: bool,
 }
 
 impl UrdfArgs {
@@ -110,6 +114,7 @@ impl UrdfArgs {
             floating_base: self.floating,
             strict: self.strict,
             balance_inertia: self.balance_inertia,
+            inertia_from_collision: self.inertia_from_collision,
             ..Default::default()
         }
     }

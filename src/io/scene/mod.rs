@@ -107,7 +107,7 @@
 //! | | `floating` | free joint at the root (false: the root link is fixed to the world) |
 //! | | `position`, `rpy` or `quaternion` | pose of the root link in the world (identity) |
 //! | | `velocity`, `angular_velocity` | floating base: initial velocity of the root link, world axes (0) |
-//! | | `joints` | initial positions, `{ joint = value }` (a list for joints of several coordinates); within limits |
+//! | | `joints` | initial positions, `{ joint = value }` (a list for joints of several coordinates); within limits. Other joints start at their neutral position, or the nearest position within their limits where it is outside them |
 //! | | `joint_velocities` | initial rates, `{ joint = value }` |
 //! | | `limits` | position limits overriding the file's, `{ joint = [lower, upper] }` (hinge and slider joints) |
 //! | | `servo` | `{ gain, max_velocity, max_force }`: hold every scalar joint at its initial position |
@@ -121,6 +121,7 @@
 //! | | `package_paths` | directories searched for `package://` URIs |
 //! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`]) (false) |
 //! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`]) (false) |
+//! | | `inertia_from_collision` | each link's rotational inertia computed from its collision shapes with the file's mass, as PyBullet does by default ([`UrdfOptions::inertia_from_collision`]) (false) |
 //! | `[[body]]` | `shape` | `"box"` (`size = [x, y, z]`), `"sphere"` (`radius`), `"capsule"` or `"cylinder"` (`radius`, `length` along z) |
 //! | | `mass` or `density` | kg, or kg/m³ (density 1000) |
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |

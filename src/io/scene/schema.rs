@@ -239,6 +239,8 @@ pub(super) struct UrdfSection {
     pub(super) strict: bool,
     #[serde(default)]
     pub(super) balance_inertia: bool,
+    #[serde(default)]
+    pub(super) inertia_from_collision: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]

@@ -1,5 +1,5 @@
 //! From the links and joints read ([`super::read`]) to a [`Model`]: the tree, the joint mapping,
-//! the limits, and the check of each link's inertia.
+//! the limits; each link's inertia comes from [`super::inertia`].
 
 use super::extension::Extension;
 use super::read::{JointDesc, JointType, LinkDesc, RobotDesc};
@@ -9,6 +9,7 @@ use crate::model::{
     BodySpec, GeometrySpec, Joint, JointDynamics, JointLimits, Model, ModelBuilder, RigidInertia,
 };
 use std::collections::HashMap;
+use std::path::Path;
 
 /// Builds the model of `robot`; inertia warnings (and, leniently, inverted limits) are added to
 /// `warnings`.
@@ -16,6 +17,7 @@ pub(super) fn model(
     robot: &RobotDesc,
     extensions: &HashMap<String, Extension>,
     file: &str,
+    dir: Option<&Path>,
     options: &UrdfOptions,
     warnings: &mut Vec<UrdfWarning>,
 ) -> Result<Model, UrdfError> {
@@ -70,14 +72,17 @@ pub(super) fn model(
     let mut builder = ModelBuilder::new();
     builder.name(robot.name.clone());
     builder.accept_inconsistent_inertia(!options.strict);
-    let balance = options.balance_inertia;
-    let mut root_body = link_body(root, "universe", Transform::identity(), balance, warnings)
+    let inertia = |link: &LinkDesc, warnings: &mut Vec<UrdfWarning>| {
+        super::inertia::link_inertia(link, file, dir, options, warnings)
+    };
+    let mut root_body = link_body(root, "universe", Transform::identity(), inertia(root, warnings)?)
         .with_joint_name(options.root_joint_name.clone());
     root_body.joint = if options.floating_base { Joint::Free } else { Joint::Fixed };
     builder.add_body(root_body);
     for j in &robot.joints {
-        let body = link_body(links[j.child.as_str()], &j.parent, j.origin, balance, warnings)
-            .with_joint_name(j.name.clone());
+        let child = links[j.child.as_str()];
+        let body =
+            link_body(child, &j.parent, j.origin, inertia(child, warnings)?).with_joint_name(j.name.clone());
         for b in joint_bodies(j, body, extensions.get(&j.name), file, options.strict, warnings)? {
             builder.add_body(b);
         }
@@ -85,30 +90,8 @@ pub(super) fn model(
     builder.build().map_err(|source| UrdfError::Model { file: file.to_string(), source })
 }
 
-/// The body of a link (fixed joint), its inertia checked: an inconsistent one is a warning, and
-/// with `balance` replaced by its balanced form ([`RigidInertia::balanced`]).
-fn link_body(
-    link: &LinkDesc,
-    parent: &str,
-    placement: Transform,
-    balance: bool,
-    warnings: &mut Vec<UrdfWarning>,
-) -> BodySpec {
-    let frame = link.inertial_origin;
-    let [ixx, ixy, ixz, iyy, iyz, izz] = link.inertia;
-    let local = Mat3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
-    let mut inertia =
-        RigidInertia::new(link.mass, frame.translation, frame.rotation * local * frame.rotation.transpose());
-    if let Some(issue) = inertia.issue() {
-        if balance {
-            inertia = inertia.balanced();
-        }
-        warnings.push(UrdfWarning {
-            element: format!("<link name=\"{}\">", link.name),
-            line: link.line,
-            kind: WarningKind::InconsistentInertia { issue, balanced: balance },
-        });
-    }
+/// The body of a link (fixed joint) with its inertia and geometry.
+fn link_body(link: &LinkDesc, parent: &str, placement: Transform, inertia: RigidInertia) -> BodySpec {
     let mut body = BodySpec::new(link.name.clone(), parent, Joint::Fixed, placement, inertia);
     for (role, placement, shape) in &link.geometries {
         body.geometries.push(GeometrySpec {

@@ -4,11 +4,13 @@
 //! Mapping: `revolute`/`continuous` → hinge, `prismatic` → slider, `fixed` → fused into the
 //! parent, `floating` → free, `planar` → planar (the URDF axis is the plane normal), `spherical`
 //! → ball. Axes are normalized. The inertial origin's rotation is applied to the inertia tensor.
-//! Joints are numbered depth-first in the order the file lists them (Pinocchio's order). Position
+//! Joints are numbered depth-first, siblings in the order the file lists them (Pinocchio orders
+//! siblings by joint name: `docs/conventions.md`). Position
 //! limits of `continuous` joints are ignored; a `<limit>` of zero velocity or zero effort, and a
 //! zero-width position range, mean "not given". Collision and visual shapes are kept in the model
-//! ([`crate::model::GeometrySpec`]); no mesh file is opened. `<mimic>` is not modelled: the
-//! joint moves on its own.
+//! ([`crate::model::GeometrySpec`]); no mesh file is opened unless
+//! [`UrdfOptions::inertia_from_collision`] asks for the inertias of the collision shapes.
+//! `<mimic>` is not modelled: the joint moves on its own.
 //!
 //! ## Lenient by default, strict on request
 //! Files from the wild carry vendors' and tools' extensions (`<joint_properties>`, `<self_filter>`,
@@ -20,7 +22,9 @@
 //! XML declaration and NUL bytes after the root are removed, and an inconsistent inertia (a
 //! negative principal moment, or moments violating the triangle inequality I₁ + I₂ ≥ I₃) is kept
 //! as written (so that the dynamics agree with Pinocchio's) or, with
-//! [`UrdfOptions::balance_inertia`], replaced as MuJoCo's `balanceinertia` does.
+//! [`UrdfOptions::balance_inertia`], replaced as MuJoCo's `balanceinertia` does. A singular
+//! inertia of a link with mass (a point, a rod: PyBullet's random objects write diag(1, 1, 0)) is
+//! kept with a warning that names [`UrdfOptions::inertia_from_collision`], PyBullet's default.
 //! [`UrdfOptions::strict`] makes every warning an error ([`UrdfError::Parse`] or, for an
 //! inertia, [`UrdfError::Model`]): a misspelt `<axiss>` would otherwise leave the axis at x.
 //! What leaves no model to build is an error in both modes: text that is not XML, a root other than
@@ -66,13 +70,15 @@
 //! <gelenk joint="neck" type="ball" twist_axis="0 0 1" swing="0.7" twist_lower="-0.6" twist_upper="0.6"/>
 //! ```
 
-use crate::error::ModelError;
+use crate::collision::MeshOptions;
+use crate::error::{CollisionError, ModelError};
 use crate::model::{InertiaIssue, Model};
 use std::path::Path;
 use thiserror::Error;
 
 mod build;
 mod extension;
+mod inertia;
 mod read;
 
 /// Options for loading a URDF model.
@@ -87,6 +93,14 @@ pub struct UrdfOptions {
     /// Replace an inconsistent link inertia by its balanced form ([`crate::model::RigidInertia::balanced`],
     /// MuJoCo's `balanceinertia`); the warning stays. Without it the inertia is kept as written.
     pub balance_inertia: bool,
+    /// Replace the rotational inertia of each link that has mass and collision shapes by that of
+    /// its collision shapes as one uniform solid (meshes as their convex hulls), keeping the
+    /// file's mass and centre of mass: PyBullet's default (without `URDF_USE_INERTIA_FROM_FILE`).
+    /// Meshes are opened at load time, with [`UrdfOptions::meshes`].
+    pub inertia_from_collision: bool,
+    /// How collision meshes are found and read for [`UrdfOptions::inertia_from_collision`]
+    /// (search paths for `package://` URIs; whether a missing mesh is an error or left out).
+    pub meshes: MeshOptions,
 }
 
 impl Default for UrdfOptions {
@@ -96,6 +110,8 @@ impl Default for UrdfOptions {
             root_joint_name: "root_joint".to_string(),
             strict: false,
             balance_inertia: false,
+            inertia_from_collision: false,
+            meshes: MeshOptions::default(),
         }
     }
 }
@@ -184,6 +200,16 @@ pub enum WarningKind {
         /// Whether it was replaced by its balanced form ([`UrdfOptions::balance_inertia`]).
         balanced: bool,
     },
+    /// A link with mass whose rotational inertia is singular (a point mass, a rod: a principal
+    /// moment at most 1e-9 of the largest): kept as written. A free body or a subtree whose only
+    /// inertia about some axis is this one has a singular mass matrix.
+    SingularInertia {
+        /// Principal moments, ascending (kg·m²).
+        moments: [f64; 3],
+        /// Whether the link has collision shapes to compute an inertia from
+        /// ([`UrdfOptions::inertia_from_collision`]).
+        has_collision: bool,
+    },
 }
 
 impl std::fmt::Display for UrdfWarning {
@@ -211,6 +237,17 @@ impl std::fmt::Display for UrdfWarning {
                 let done =
                     if *balanced { "balanced (all moments set to their mean)" } else { "kept as written" };
                 write!(f, "{issue}: {done}")
+            }
+            WarningKind::SingularInertia { moments, has_collision } => {
+                write!(f, "principal moments {moments:?} kg·m²: a singular inertia, kept as written")?;
+                if *has_collision {
+                    write!(
+                        f,
+                        " (PyBullet computes inertias from the collision shapes: inertia_from_collision, \
+                         --inertia-from-collision)"
+                    )?;
+                }
+                Ok(())
             }
         }
     }
@@ -270,6 +307,15 @@ pub enum UrdfError {
         /// The model error, naming the link or joint.
         source: ModelError,
     },
+    /// A collision shape could not be built where the loader needs it
+    /// ([`UrdfOptions::inertia_from_collision`]): a mesh not found or unreadable, a bad size.
+    #[error("{file}: {source}")]
+    Collision {
+        /// File path.
+        file: String,
+        /// The collision error, naming the link.
+        source: CollisionError,
+    },
 }
 
 /// Loads a URDF file; the warnings are dropped (see [`load_file_with_warnings`]).
@@ -291,17 +337,24 @@ pub fn load_file_with_warnings(path: impl AsRef<Path>, options: &UrdfOptions) ->
         file: file.clone(),
         source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
     })?;
-    let mut loaded = load_named(&text, &file, options)?;
-    loaded.model.source_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut loaded = load_named(&text, &file, Some(&dir), options)?;
+    loaded.model.source_dir = Some(dir);
     Ok(loaded)
 }
 
 /// Loads a URDF document from text with the warnings of the lenient loader.
 pub fn load_str_with_warnings(text: &str, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
-    load_named(text, "<string>", options)
+    load_named(text, "<string>", None, options)
 }
 
-fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
+/// Loads `text`, named `file` in errors; relative mesh paths are relative to `dir`.
+fn load_named(
+    text: &str,
+    file: &str,
+    dir: Option<&Path>,
+    options: &UrdfOptions,
+) -> Result<Loaded, UrdfError> {
     let parse_err = |message: String| UrdfError::Parse { file: file.to_string(), message };
     let (text, stray) = trim_stray_text(text);
     let doc = roxmltree::Document::parse(&text).map_err(|e| parse_err(e.to_string()))?;
@@ -317,7 +370,7 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Loaded, U
     let robot = reader.robot()?;
     let extensions = extension::read_extensions(&doc, file)?;
     let mut warnings = reader.warnings;
-    let model = build::model(&robot, &extensions, file, options, &mut warnings)?;
+    let model = build::model(&robot, &extensions, file, dir, options, &mut warnings)?;
     Ok(Loaded { model, warnings })
 }
 

@@ -27,10 +27,20 @@ impl Builder<'_> {
         let placement = pose(u.position, u.rpy, u.quaternion).map_err(err)?;
         let material = self.material_of(&u.material)?;
         let path = self.src.resolve(u.path.get_ref());
+        let meshes = MeshOptions {
+            search_paths: u.package_paths.iter().map(|p| self.src.resolve(p)).collect(),
+            missing: match u.missing_meshes {
+                MissingMeshes::Error => MissingMeshPolicy::Error,
+                MissingMeshes::Skip => MissingMeshPolicy::Skip,
+            },
+            ..MeshOptions::default()
+        };
         let options = UrdfOptions {
             floating_base: u.floating,
             strict: u.strict,
             balance_inertia: u.balance_inertia,
+            inertia_from_collision: u.inertia_from_collision,
+            meshes: meshes.clone(),
             ..UrdfOptions::default()
         };
         let loaded = urdf::load_file_with_warnings(&path, &options).map_err(|source| SceneError::Urdf {
@@ -79,6 +89,16 @@ impl Builder<'_> {
         let base_name = if base_name.is_empty() { "robot".to_string() } else { base_name };
 
         let mut q = model.neutral_configuration();
+        // A neutral position outside a joint's limits (Kinova's shoulder: [0.82, 5.46] rad) would
+        // be pushed back by the limit rows at erp/h rad/s in the first step: start within them.
+        for j in (1..model.nbodies()).filter(|&j| !matches!(model.joint(j), Joint::Free | Joint::Ball)) {
+            for k in model.idx_q(j)..model.idx_q(j) + model.joint(j).nq() {
+                let (lo, hi) = (model.lower_position_limit()[k], model.upper_position_limit()[k]);
+                if lo <= hi {
+                    q[k] = q[k].clamp(lo, hi);
+                }
+            }
+        }
         let mut v = nalgebra::DVector::zeros(model.nv());
         let root = model.children(0).first().copied().filter(|&j| *model.joint(j) == Joint::Free);
         if u.floating && root.is_none() {
@@ -132,15 +152,6 @@ impl Builder<'_> {
             .flat_map(|j| (0..model.joint(j).nv()).map(move |k| (j, k)))
             .map(|(j, k)| (model.idx_v(j) + k, q[model.idx_q(j) + k]))
             .collect();
-
-        let meshes = MeshOptions {
-            search_paths: u.package_paths.iter().map(|p| self.src.resolve(p)).collect(),
-            missing: match u.missing_meshes {
-                MissingMeshes::Error => MissingMeshPolicy::Error,
-                MissingMeshes::Skip => MissingMeshPolicy::Skip,
-            },
-            ..MeshOptions::default()
-        };
 
         // Copies, placed as `[[body]]` copies are.
         let copies = Copies::new(u.count, u.spacing, u.jitter).map_err(err)?;
