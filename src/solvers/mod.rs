@@ -40,6 +40,12 @@ pub enum SolverError {
         /// The last path's ray, checked.
         certificate: Box<RayCertificate>,
     },
+    /// Lemke's method came back to a basis it had left: rounding defeated its anti-cycling rule.
+    #[error("Lemke: the path cycled after {pivots} pivots (a basis came back)")]
+    LemkeCycle {
+        /// Pivots done (over all paths).
+        pivots: usize,
+    },
     /// Lemke's method met a basis whose LU is singular to working precision.
     #[error("Lemke: singular basis after {pivots} pivots (smallest/largest LU pivot {ratio:.1e})")]
     LemkeSingularBasis {

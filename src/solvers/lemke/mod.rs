@@ -74,6 +74,9 @@ pub struct LemkeReport {
     pub residual: f64,
     /// Whether the answer was polished (fresh factorization and iterative refinement).
     pub polished: bool,
+    /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
+    /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
+    pub near_solution: bool,
 }
 
 /// The paths tried in order: (equilibrated, covering vector). The covering vectors are in the
@@ -202,23 +205,26 @@ fn solve_sparse(
         let z_of = |path: &Path| -> Vec<f64> {
             (0..n).map(|j| (scaling.col[j] * path.value(n + j)).max(0.0)).collect()
         };
+        // The path's point, z0 dropped: a solution when the path ended there, and possibly one
+        // within the tolerance when it ended otherwise with z0 already near zero.
+        let mut z = z_of(&path);
+        let mut residual = natural_residual(m, q, &z);
+        if end == PathEnd::Solved && residual > tolerance && path.polish(2).is_ok() {
+            report.polished = true;
+            report.refactorizations += 1;
+            let polished = z_of(&path);
+            let polished_residual = natural_residual(m, q, &polished);
+            if polished_residual < residual {
+                (z, residual) = (polished, polished_residual);
+            }
+        }
+        if residual <= tolerance {
+            report.residual = residual;
+            report.near_solution = end != PathEnd::Solved;
+            return Ok((DVector::from_vec(z), report));
+        }
         match end {
             PathEnd::Solved => {
-                let mut z = z_of(&path);
-                let mut residual = natural_residual(m, q, &z);
-                if residual > tolerance && path.polish(2).is_ok() {
-                    report.polished = true;
-                    report.refactorizations += 1;
-                    let polished = z_of(&path);
-                    let polished_residual = natural_residual(m, q, &polished);
-                    if polished_residual < residual {
-                        (z, residual) = (polished, polished_residual);
-                    }
-                }
-                if residual <= tolerance {
-                    report.residual = residual;
-                    return Ok((DVector::from_vec(z), report));
-                }
                 if best.as_ref().is_none_or(|(_, r)| residual < *r) {
                     best = Some((DVector::from_vec(z), residual));
                 }
@@ -234,6 +240,9 @@ fn solve_sparse(
             }
             PathEnd::PivotLimit => {
                 failure = Some(SolverError::PivotLimit { pivots: path_options.max_pivots });
+            }
+            PathEnd::Cycle => {
+                failure = Some(SolverError::LemkeCycle { pivots: report.pivots });
             }
             PathEnd::Singular(singular) => {
                 failure =

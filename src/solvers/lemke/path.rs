@@ -26,6 +26,8 @@ pub(super) enum PathEnd {
     },
     /// The pivot limit was reached.
     PivotLimit,
+    /// A basis came back (rounding defeated the anti-cycling rule): the path would cycle.
+    Cycle,
     /// A refactorization found the basis singular.
     Singular(Singular),
 }
@@ -64,6 +66,17 @@ pub(super) struct Path<'a> {
     unit: Vec<f64>,
     column: Vec<f64>,
     ties: Vec<usize>,
+    /// Zobrist hash of the set of basic variables, and the hashes seen on this path.
+    basis_hash: u64,
+    seen: std::collections::HashSet<u64>,
+}
+
+/// A pseudo-random 64-bit key of variable `var` (SplitMix64), for the basis hash.
+fn key(var: usize) -> u64 {
+    let mut z = (var as u64).wrapping_add(1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 impl<'a> Path<'a> {
@@ -86,6 +99,8 @@ impl<'a> Path<'a> {
             unit: vec![0.0; n],
             column: vec![0.0; n],
             ties: Vec::new(),
+            basis_hash: (0..n).fold(0, |h, var| h ^ key(var)),
+            seen: std::collections::HashSet::new(),
         }
     }
 
@@ -105,6 +120,9 @@ impl<'a> Path<'a> {
             }
             if self.pivots >= self.options.max_pivots {
                 return PathEnd::PivotLimit;
+            }
+            if !self.seen.insert(self.basis_hash) {
+                return PathEnd::Cycle;
             }
             if self.refactor_soon || self.basis.updates() >= self.refactor_interval {
                 if let Err(singular) = self.refactor() {
@@ -161,7 +179,9 @@ impl<'a> Path<'a> {
         // A small pivot makes the eta ill-conditioned: start over from a fresh factorization.
         self.refactor_soon |= a_r.abs() < 1e-6 * a_max;
         self.pivots += 1;
-        self.basis.replace(row, entering, &self.alpha)
+        let leaving = self.basis.replace(row, entering, &self.alpha);
+        self.basis_hash ^= key(leaving) ^ key(entering);
+        leaving
     }
 
     /// The ratio test on `alpha`; `None` if no entry is a pivot.
