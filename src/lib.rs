@@ -31,6 +31,19 @@
 //! let a = aba(&model, &mut data, &q, &v, &tau).unwrap();
 //! assert!(a[0].abs() < 1e-12); // hanging straight down: at rest
 //! ```
+//!
+//! ## Cargo features
+//!
+//! All on by default; with `default-features = false` the library is the models, algorithms,
+//! collision, constraints, solvers, [`world`], the built-in [`scenes`], [`run`] and the file
+//! formats of [`io`], and each feature adds one optional part:
+//!
+//! | feature | adds |
+//! |---|---|
+//! | `plot` | `plot`: plotters with DejaVu Sans embedded |
+//! | `render` | `render`: filmstrips of scenes as PNG images (needs `plot`) |
+//! | `report` | `report`: the stability and speed-error reports (needs `plot`) |
+//! | `cli` | the `gelenk` command-line tool (clap; needs `render` and `report`) |
 #![warn(missing_docs)]
 
 pub mod algorithms;
@@ -42,9 +55,13 @@ pub mod integrators;
 pub mod io;
 pub mod math;
 pub mod model;
+#[cfg(feature = "plot")]
 pub mod plot;
+#[cfg(feature = "render")]
 pub mod render;
+#[cfg(feature = "report")]
 pub mod report;
+pub mod run;
 pub mod scenes;
 pub mod solvers;
 pub mod state;

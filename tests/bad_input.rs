@@ -321,9 +321,11 @@ fn robot(body: &str) -> String {
     format!(r#"<?xml version="1.0"?><robot name="r">{body}</robot>"#)
 }
 
-/// Loads `text`, expecting an error (not a panic); returns its message.
+/// Loads `text` with the strict options (every loader warning an error), expecting an error
+/// (not a panic); returns its message. tests/urdf_wild.rs checks which of these the default,
+/// lenient options load.
 fn urdf_err(text: &str) -> String {
-    let result = std::panic::catch_unwind(|| load_str(text, &UrdfOptions::default()).map(|m| m.nv()));
+    let result = std::panic::catch_unwind(|| load_str(text, &UrdfOptions::strict()).map(|m| m.nv()));
     match result {
         Err(_) => panic!("loading panicked on:\n{text}"),
         Ok(Ok(nv)) => panic!("a malformed URDF loaded (nv = {nv}):\n{text}"),
@@ -331,7 +333,7 @@ fn urdf_err(text: &str) -> String {
     }
 }
 
-/// Inverted or NaN bounds are an error; equal bounds (urdf-rs reads a missing one as 0) mean
+/// Inverted or NaN bounds are an error (strict); equal bounds (a missing one reads as 0) mean
 /// no limit, and a continuous joint ignores them.
 #[test]
 fn urdf_inverted_or_nan_limits_are_errors() {
@@ -358,10 +360,10 @@ fn urdf_inverted_or_nan_limits_are_errors() {
     }
 }
 
-/// A misspelt element of a joint, link or inertial, or a misspelt attribute of an origin, axis,
-/// mass or inertia, is an error naming it and its line, not a silent default (the axis at x, a
-/// massless link); vendors' attributes on `<dynamics>` and `<limit>`, `<mimic>`,
-/// `<safety_controller>` and PyBullet's `<contact>` load.
+/// With the strict options, a misspelt element of a joint, link or inertial, or a misspelt
+/// attribute of an origin, axis, mass or inertia, is an error naming it and its line, not a
+/// silent default (the axis at x, a massless link); vendors' attributes on `<dynamics>` and
+/// `<limit>`, `<mimic>`, `<safety_controller>` and PyBullet's `<contact>` load.
 #[test]
 fn urdf_misspelt_elements_and_attributes_are_errors() {
     let j = |inner: &str| {
@@ -396,8 +398,7 @@ fn urdf_misspelt_elements_and_attributes_are_errors() {
         r#"<axis xyz="0 1 0"/><dynamics damping="0.1" D="1" K="7000"/><mimic joint="k" multiplier="1"/><safety_controller k_velocity="1"/>"#,
     );
     let contact = r#"<link name="b"><contact><lateral_friction value="1"/></contact><drake:x xmlns:drake="http://drake.mit.edu"/><inertial><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial></link>"#;
-    let model =
-        load_str(&robot(&format!("{}{contact}{extras}", link("a"))), &UrdfOptions::default()).unwrap();
+    let model = load_str(&robot(&format!("{}{contact}{extras}", link("a"))), &UrdfOptions::strict()).unwrap();
     assert_eq!(model.nv(), 1);
 }
 

@@ -269,3 +269,42 @@ fn bench_world_applies_vehicle_commands_when_asked() {
         assert!(!out.status.success() && err.contains("at least 1"), "{option} 0: {err}");
     }
 }
+
+/// `simulate --json` prints the run's summary as `RunSummary` serializes itself, and `--out`
+/// writes the recorded states: the initial state and every fifth step (the scene's `[record]`).
+#[test]
+fn simulate_prints_its_summary_and_records_the_states() {
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ball_bounce.toml");
+    let csv = std::env::temp_dir().join(format!("gelenk_simulate_{}.csv", std::process::id()));
+    let out = gelenk(&[
+        "simulate",
+        scene,
+        "--duration",
+        "0.2",
+        "--dt",
+        "0.002",
+        "--json",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["steps"], 100);
+    assert_eq!(v["dt"], 0.002);
+    let solved = v["solved_steps"].as_u64().unwrap();
+    let used: u64 = v["solver_usage"].as_object().unwrap().values().map(|n| n.as_u64().unwrap()).sum();
+    assert_eq!(used, solved, "every step with rows took one solver's answer");
+    assert_eq!(v["phase_time"].as_array().unwrap().len(), 6);
+    let drift = v["energy_end"].as_f64().unwrap() - v["energy_start"].as_f64().unwrap();
+    assert_eq!(v["energy_drift"].as_f64().unwrap(), drift);
+    assert!(v.get("recording").is_none(), "the recording goes to --out, not into the summary");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    std::fs::remove_file(&csv).ok();
+    assert!(text.starts_with("step,time,"), "{text}");
+    assert_eq!(text.lines().count(), 1 + 21, "header, steps 0, 5, …, 100");
+    // The text summary names the same run.
+    let out = gelenk(&["simulate", scene, "--duration", "0.2", "--dt", "0.002"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with("ball_bounce: 100 steps of 0.002 s"), "{text}");
+    assert!(text.contains(&format!("solver: {solved} steps with rows")), "{text}");
+}

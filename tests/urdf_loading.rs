@@ -91,7 +91,8 @@ fn floating_base_layout_and_joint_order() {
         }
     }
     // the name of the root joint is an option
-    let options = UrdfOptions { floating_base: true, root_joint_name: "base_free".into() };
+    let options =
+        UrdfOptions { floating_base: true, root_joint_name: "base_free".into(), ..Default::default() };
     let m = load_file(model_path("solo12.urdf"), &options).unwrap();
     assert_eq!(m.joint_id("base_free"), Some(1));
     assert_eq!(m.joint_id("root_joint"), None);

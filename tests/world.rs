@@ -559,61 +559,16 @@ fn ball_on_incline_rolls_at_five_sevenths_g_sin_theta_or_slides() {
     assert!(slip > 0.1, "the contact point slips: {slip}");
 }
 
-/// A rod of `length` m and 1 kg along the body's x axis, hinged about y at the body origin.
-fn rod(name: &str, parent: &str, placement: Transform, length: f64) -> BodySpec {
-    let i = length * length / 12.0;
-    let inertia = RigidInertia::new(
-        1.0,
-        Vec3::new(length / 2.0, 0.0, 0.0),
-        nalgebra::Matrix3::from_diagonal(&Vec3::new(1e-4, i, i)),
-    );
-    BodySpec::new(name, parent, Joint::hinge(Vec3::y()), placement, inertia)
-}
-
 #[test]
 fn four_bar_linkage_keeps_its_closure_below_1e_8_m() {
-    // A chain of three hinges (crank a from the world origin, coupler b, rocker c) whose rocker
-    // tip is closed by a hinge loop joint to the world point (d, 0, 0). All axes are y; a body
-    // turned by φ points along (cos φ, 0, −sin φ).
-    let (a, b, c, d) = (0.15, 0.35, 0.30, 0.40);
-    let mut builder = ModelBuilder::new();
-    builder.add_body(rod("crank", "universe", Transform::identity(), a));
-    builder.add_body(rod("coupler", "crank", Transform::from_translation(Vec3::new(a, 0.0, 0.0)), b));
-    builder.add_body(rod("rocker", "coupler", Transform::from_translation(Vec3::new(b, 0.0, 0.0)), c));
-    let model = builder.build().unwrap();
-    // Closed configuration for crank angle φ₁, in 2-D coordinates (x, −z).
-    let phi1: f64 = 1.0;
-    let p = nalgebra::Vector2::new(a * phi1.cos(), a * phi1.sin());
-    let o2 = nalgebra::Vector2::new(d, 0.0);
-    let dist = (o2 - p).norm();
-    let u = (o2 - p) / dist;
-    let l = (b * b - c * c + dist * dist) / (2.0 * dist);
-    let tip = p + u * l - nalgebra::Vector2::new(-u.y, u.x) * (b * b - l * l).sqrt();
-    let phi2 = (tip.y - p.y).atan2(tip.x - p.x);
-    let phi3 = (o2.y - tip.y).atan2(o2.x - tip.x);
-
+    // The four-bar linkage of `gelenk::scenes`: a chain of three hinges (crank, coupler,
+    // rocker) whose rocker tip is closed by a hinge loop joint to a world point.
     let mut options = exact_options();
     options.dt = 1e-3;
     options.diagnostics = true;
     options.sleep.enabled = false;
-    let mut w = World::new(options);
-    let m = w.add_multibody("four-bar", model, &MeshOptions::default()).unwrap();
-    w.add_loop(
-        m,
-        gelenk::constraints::LoopClosure {
-            body_a: 3,
-            frame_a: Transform::from_translation(Vec3::new(c, 0.0, 0.0)),
-            body_b: 0,
-            frame_b: Transform::from_translation(Vec3::new(d, 0.0, 0.0)),
-            kind: gelenk::constraints::LoopKind::Hinge { axis: Vec3::y() },
-            erp: 0.2,
-        },
-    )
-    .unwrap();
-    let q = &mut w.multibody_mut(m).state.q;
-    q[0] = phi1;
-    q[1] = phi2 - phi1;
-    q[2] = phi3 - phi2;
+    let (mut w, m) = gelenk::scenes::four_bar_world(options).unwrap();
+    let phi1 = gelenk::scenes::FOUR_BAR_CRANK_ANGLE;
     let start = w.constraint_violation();
     assert!(start < 1e-12, "the initial configuration is closed: {start}");
     let mut worst: f64 = 0.0;

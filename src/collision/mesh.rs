@@ -3,7 +3,8 @@
 //!
 //! URIs resolve as ROS tools do: `package://PKG/REST` is looked up in each search path as
 //! `DIR/PKG/REST` and `DIR/REST`, then in the model's directory and its ancestors (a directory named
-//! `PKG` among them is the package root, and `DIR/REST` is tried for each); `file://PATH` and
+//! `PKG` among them is the package root, and `DIR/PKG/REST` and `DIR/REST` are tried for each of
+//! the model's directory and its two parents); `file://PATH` and
 //! absolute paths are taken as they are; any other path is relative to the model's directory.
 
 use crate::error::CollisionError;
@@ -57,6 +58,9 @@ pub fn candidate_paths(uri: &str, model_dir: Option<&Path>, search_paths: &[Path
                 }
             }
             for ancestor in dir.ancestors().take(3) {
+                // The package as a directory beside the model (PyBullet's xarm/xarm_description,
+                // franka_panda/meshes), then the package's contents there.
+                out.push(ancestor.join(package).join(inner));
                 out.push(ancestor.join(inner));
             }
         }
@@ -137,6 +141,9 @@ mod tests {
         assert_eq!(c[0], PathBuf::from("/opt/share/robot_description/meshes/a.stl"));
         assert_eq!(c[1], PathBuf::from("/opt/share/meshes/a.stl"));
         assert!(c.contains(&PathBuf::from("/x/robot_description/meshes/a.stl")));
+        // The package as a directory beside the model (PyBullet's xarm/xarm_description).
+        let c = candidate_paths("package://xarm_description/meshes/a.stl", Some(Path::new("/p/xarm")), &[]);
+        assert!(c.contains(&PathBuf::from("/p/xarm/xarm_description/meshes/a.stl")), "{c:?}");
     }
 
     #[test]

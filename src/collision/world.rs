@@ -106,7 +106,8 @@ impl Collider {
         let parry_frame = from_pose(&self.world_pose);
         self.offset.map_or(parry_frame, |o| parry_frame * o.inverse())
     }
-    /// parry's shape and its world pose (parry's frame), for drawing.
+    /// parry's shape and its world pose (parry's frame), for drawing ([`crate::render`]).
+    #[cfg(feature = "render")]
     pub(crate) fn parry_shape(&self) -> (&SharedShape, &Pose) {
         (&self.shape, &self.world_pose)
     }

@@ -13,13 +13,13 @@
 //! are computed from it by one function ([`crate::solvers::residuals()`]), and it can be written to
 //! files for QP-solver regression tests.
 
-mod assemble;
+mod builder;
 mod contact;
 mod joints;
 mod loops;
 
-pub use assemble::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
-pub(crate) use assemble::{BuiltRows, RowsMark};
+pub use builder::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
+pub(crate) use builder::{BuiltRows, RowsMark};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,
@@ -306,7 +306,7 @@ impl ConstraintProblem {
         for ei in sp.row_start[i]..sp.row_start[i + 1] {
             for ej in sp.row_start[j]..sp.row_start[j + 1] {
                 if sp.blocks_of_row[ei] == sp.blocks_of_row[ej] {
-                    a += assemble::runs_dot(sp, sp.entry_runs(ei), sp.entry_runs(ej));
+                    a += builder::runs_dot(sp, sp.entry_runs(ei), sp.entry_runs(ej));
                 }
             }
         }
@@ -334,8 +334,8 @@ impl ConstraintProblem {
         let mut a = DMatrix::zeros(self.rows(), self.rows());
         // The stepping path leaves the per-block index out when A is not formed.
         let mut sparsity = self.sparsity.clone();
-        assemble::index_rows_by_block(&mut sparsity);
-        assemble::delassus_from_w(&sparsity, &mut a);
+        builder::index_rows_by_block(&mut sparsity);
+        builder::delassus_from_w(&sparsity, &mut a);
         std::borrow::Cow::Owned(a)
     }
 
@@ -447,6 +447,31 @@ impl ConstraintProblem {
         l.extend_from_slice(lambda);
         s.clear();
         s.extend_from_slice(sum);
+    }
+
+    /// Adds a compliance relative to each row's effective mass: `R_ii += relative · A_ii` for
+    /// unilateral and bounded rows, and for a contact's two friction rows the normal's
+    /// `relative · A_nn` (so that a contact's three rows are equally soft); bilateral rows
+    /// (loop closures) stay as they are. See [`crate::world::WorldOptions::softness`].
+    pub fn soften(&mut self, relative: f64) {
+        for i in 0..self.rows() {
+            let extra = match self.laws[i] {
+                RowLaw::Bilateral => continue,
+                RowLaw::Friction { contact } => {
+                    relative * self.diagonal_of_row(self.contacts[contact].normal)
+                }
+                RowLaw::Unilateral | RowLaw::Bounded { .. } => relative * self.diagonal_of_row(i),
+            };
+            self.regularization[i] += extra;
+        }
+    }
+
+    /// A_ii as kept by assembly, or from A or W.
+    fn diagonal_of_row(&self, i: usize) -> f64 {
+        match self.kept_diagonal() {
+            Some(a) => a[i],
+            None => self.delassus_entry(i, i),
+        }
     }
 
     /// A problem given directly by its matrix and vectors (no Jacobian): for tests, imported

@@ -1,4 +1,6 @@
-//! Reading and writing models: URDF (with gelenk's extension for universal and hinge2 joints).
+//! Files in and out: [`urdf`] models (with gelenk's extension for universal and hinge2 joints),
+//! [`mjcf`] scenes (MuJoCo's XML), [`scene`] files (TOML: a world described in text), and
+//! [`problem`] files (constraint problems written for regression tests and other solvers).
 
 pub mod mjcf;
 pub mod problem;

@@ -77,6 +77,76 @@ impl RigidInertia {
     fn spatial(&self) -> SpatialInertia {
         SpatialInertia::new(self.mass, self.com, self.inertia_com)
     }
+
+    /// What makes the rotational inertia one no rigid body can have, if anything: a principal
+    /// moment below zero, or moments violating the triangle inequality I₁ + I₂ ≥ I₃ (each up to
+    /// a tolerance relative to the largest entry, as CAD exports round: 1e-9 for the sign, 1e-6
+    /// for the triangle). A point mass (zero inertia) is consistent. Assumes a finite symmetric
+    /// tensor.
+    pub fn issue(&self) -> Option<InertiaIssue> {
+        let i = &self.inertia_com;
+        let scale = i.amax();
+        let moments = principal_moments(i);
+        let tol = 1e-9 * scale;
+        if moments[0] < -tol {
+            Some(InertiaIssue::NotPositive { moments })
+        } else if moments[0] + moments[1] < moments[2] - (1e-6 * scale).max(tol) {
+            Some(InertiaIssue::TriangleInequality { moments })
+        } else {
+            None
+        }
+    }
+
+    /// The inertia with MuJoCo's `balanceinertia` repair: when [`RigidInertia::issue`] finds one,
+    /// the three principal moments are set to their mean (negative ones counted as 0), which
+    /// makes the tensor that mean times the identity; otherwise unchanged. Mass and centre of
+    /// mass are kept.
+    pub fn balanced(&self) -> RigidInertia {
+        if self.issue().is_none() {
+            return *self;
+        }
+        let moments = principal_moments(&self.inertia_com);
+        let mean = moments.iter().map(|m| m.max(0.0)).sum::<f64>() / 3.0;
+        RigidInertia { inertia_com: Mat3::from_diagonal_element(mean), ..*self }
+    }
+}
+
+/// Why a rotational inertia is one no rigid body can have ([`RigidInertia::issue`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum InertiaIssue {
+    /// A principal moment is negative: some rotation would have negative kinetic energy.
+    NotPositive {
+        /// Principal moments, ascending (kg·m²).
+        moments: [f64; 3],
+    },
+    /// The principal moments violate I₁ + I₂ ≥ I₃: no mass distribution has them.
+    TriangleInequality {
+        /// Principal moments, ascending (kg·m²).
+        moments: [f64; 3],
+    },
+}
+
+impl std::fmt::Display for InertiaIssue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            InertiaIssue::NotPositive { moments } => {
+                write!(
+                    f,
+                    "inertia tensor is not positive semi-definite (principal moments {moments:?} kg·m²)"
+                )
+            }
+            InertiaIssue::TriangleInequality { moments } => {
+                write!(f, "principal moments {moments:?} kg·m² violate the triangle inequality I1 + I2 >= I3")
+            }
+        }
+    }
+}
+
+/// Eigenvalues of a symmetric 3×3 tensor, ascending.
+fn principal_moments(i: &Mat3) -> [f64; 3] {
+    let mut m = i.symmetric_eigenvalues();
+    m.as_mut_slice().sort_by(|a, b| a.total_cmp(b));
+    [m[0], m[1], m[2]]
 }
 
 /// Joint limits. Empty vectors mean "none"; otherwise `lower`/`upper` have the joint's nq
@@ -191,6 +261,7 @@ pub struct ModelBuilder {
     name: String,
     bodies: Vec<BodySpec>,
     gravity: Vec3,
+    accept_inconsistent_inertia: bool,
 }
 
 impl Default for ModelBuilder {
@@ -205,7 +276,21 @@ pub const UNIVERSE: &str = "universe";
 impl ModelBuilder {
     /// An empty model with gravity (0, 0, −9.81) m/s².
     pub fn new() -> Self {
-        Self { name: String::new(), bodies: Vec::new(), gravity: Vec3::new(0.0, 0.0, -9.81) }
+        Self {
+            name: String::new(),
+            bodies: Vec::new(),
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            accept_inconsistent_inertia: false,
+        }
+    }
+
+    /// Accepts rotational inertias that no rigid body can have ([`RigidInertia::issue`]: a
+    /// negative principal moment, the triangle inequality violated) instead of refusing them
+    /// (the default). The URDF loader sets it in its lenient mode, where such an inertia is a
+    /// warning. Non-finite or asymmetric inertias and negative masses stay errors.
+    pub fn accept_inconsistent_inertia(&mut self, accept: bool) -> &mut Self {
+        self.accept_inconsistent_inertia = accept;
+        self
     }
 
     /// Sets the model's name.
@@ -366,7 +451,7 @@ impl ModelBuilder {
             if joint_names.insert(s.joint_name.as_str(), ()).is_some() {
                 return Err(ModelError::DuplicateName { what: "joint", name: s.joint_name.clone() });
             }
-            validate_inertia(&s.name, &s.inertia)?;
+            validate_inertia(&s.name, &s.inertia, self.accept_inconsistent_inertia)?;
             if !s.placement.is_finite() {
                 return Err(ModelError::NonFinitePlacement { joint: s.joint_name.clone() });
             }
@@ -431,10 +516,10 @@ fn normalized_joint(name: &str, joint: &Joint) -> Result<Joint, ModelError> {
     })
 }
 
-/// Mass finite and non-negative; inertia finite, symmetric, positive semi-definite and obeying
-/// the triangle inequality, each up to a tolerance relative to its largest entry (CAD exports
-/// round). A point mass (zero inertia) and a massless link are valid.
-fn validate_inertia(body: &str, inertia: &RigidInertia) -> Result<(), ModelError> {
+/// Mass finite and non-negative; inertia finite and symmetric (up to 1e-9 of its largest entry),
+/// and unless `accept_inconsistent` free of any [`RigidInertia::issue`]. A point mass (zero
+/// inertia) and a massless link are valid.
+fn validate_inertia(body: &str, inertia: &RigidInertia, accept_inconsistent: bool) -> Result<(), ModelError> {
     let body = body.to_string();
     if !inertia.mass.is_finite() || inertia.mass < 0.0 {
         return Err(ModelError::InvalidMass { body, mass: inertia.mass });
@@ -443,21 +528,17 @@ fn validate_inertia(body: &str, inertia: &RigidInertia) -> Result<(), ModelError
     if !i.iter().chain(inertia.com.iter()).all(|x| x.is_finite()) {
         return Err(ModelError::NonFiniteInertia { body });
     }
-    let scale = i.amax();
-    if (i - i.transpose()).amax() > 1e-9 * scale {
+    if (i - i.transpose()).amax() > 1e-9 * i.amax() {
         return Err(ModelError::InertiaNotSymmetric { body });
     }
-    let mut m = i.symmetric_eigenvalues();
-    m.as_mut_slice().sort_by(|a, b| a.total_cmp(b));
-    let moments = [m[0], m[1], m[2]];
-    let tol = 1e-9 * scale;
-    if m[0] < -tol {
-        return Err(ModelError::InertiaNotPositive { body, moments });
+    match inertia.issue() {
+        Some(_) if accept_inconsistent => Ok(()),
+        Some(InertiaIssue::NotPositive { moments }) => Err(ModelError::InertiaNotPositive { body, moments }),
+        Some(InertiaIssue::TriangleInequality { moments }) => {
+            Err(ModelError::InertiaTriangleInequality { body, moments })
+        }
+        None => Ok(()),
     }
-    if m[0] + m[1] < m[2] - (1e-6 * scale).max(tol) {
-        return Err(ModelError::InertiaTriangleInequality { body, moments });
-    }
-    Ok(())
 }
 
 fn validate_limits(s: &BodySpec) -> Result<(), ModelError> {

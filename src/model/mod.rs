@@ -10,7 +10,7 @@ mod builder;
 mod geometry;
 pub mod joint;
 
-pub use builder::{BodySpec, JointDynamics, JointLimits, ModelBuilder, RigidInertia};
+pub use builder::{BodySpec, InertiaIssue, JointDynamics, JointLimits, ModelBuilder, RigidInertia};
 pub use geometry::{GeometryRole, GeometrySpec, Shape};
 pub use joint::{swing_twist, BallLimits, Joint, Suspension, SwingTwist};
 

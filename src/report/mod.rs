@@ -4,6 +4,4 @@
 //! settings; `gelenk report speed-error`).
 
 pub mod speed_error;
-mod speed_error_plot;
-mod speed_error_scenes;
 pub mod stability;

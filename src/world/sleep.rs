@@ -2,8 +2,9 @@
 //! multibodies joined by contacts fall asleep together when every member has been idle long
 //! enough; a sleeping island costs nothing until something touches or pushes it.
 
-use super::World;
-use crate::collision::Attachment;
+use super::{Multibody, SleepOptions};
+use crate::collision::{Attachment, CollisionWorld, Contact};
+use crate::constraints::LoopClosure;
 use crate::model::Joint;
 
 /// Union–find over multibodies (buffers reused between steps).
@@ -64,12 +65,19 @@ fn speeds(model: &crate::model::Model, v: &nalgebra::DVector<f64>) -> (f64, f64)
     (linear, angular)
 }
 
-/// Updates idle counters and puts idle islands to sleep.
-pub(crate) fn update(world: &mut World) {
-    let options = world.options.sleep;
-    let h = world.options.dt;
+/// Updates idle counters (a step of `h` seconds) and puts idle islands to sleep: multibodies
+/// joined by `contacts` or `closures` sleep together.
+pub(crate) fn update(
+    options: &SleepOptions,
+    h: f64,
+    bodies: &mut [Multibody],
+    contacts: &[Contact],
+    closures: &[(usize, usize, LoopClosure)],
+    collision: &mut CollisionWorld,
+    islands: &mut Islands,
+) {
     let samples = options.average_samples.max(1);
-    for b in world.bodies.iter_mut().filter(|b| !b.asleep) {
+    for b in bodies.iter_mut().filter(|b| !b.asleep) {
         // ODE's rule (dInternalHandleAutoDisabling): the velocities of the last `samples`
         // steps are averaged as vectors and the average's speeds compared with the thresholds,
         // so that solver jitter (a light hand's velocity flipping sign from step to step)
@@ -88,7 +96,8 @@ pub(crate) fn update(world: &mut World) {
                 b.velocity_average = nalgebra::DVector::zeros(nv);
             }
             b.velocity_average.fill(0.0);
-            for sample in b.velocity_history.chunks_exact(nv) {
+            // nv = 0 (a fixed base without joints): the history is empty and the multibody idle.
+            for sample in b.velocity_history.chunks_exact(nv.max(1)) {
                 for (a, x) in b.velocity_average.iter_mut().zip(sample) {
                     *a += x;
                 }
@@ -105,10 +114,9 @@ pub(crate) fn update(world: &mut World) {
             b.idle_time = 0.0;
         }
     }
-    let n = world.bodies.len();
-    let mut islands = std::mem::take(&mut world.islands);
+    let n = bodies.len();
     islands.reset(n);
-    for c in &world.contacts {
+    for c in contacts {
         if let (Attachment::Body { multibody: a, body: ba }, Attachment::Body { multibody: b, body: bb }) =
             (c.body_a, c.body_b)
         {
@@ -117,25 +125,33 @@ pub(crate) fn update(world: &mut World) {
             }
         }
     }
-    for (a, b, _) in &world.loops {
+    for (a, b, _) in closures {
         islands.union(*a, *b);
     }
-    for i in 0..n {
-        let b = &world.bodies[i];
+    for (i, b) in bodies.iter().enumerate() {
         let ready = b.asleep || (b.idle_steps >= options.idle_steps && b.idle_time >= options.idle_time);
         let root = islands.find(i);
         islands.all_idle[root] &= ready && !b.kinematic;
     }
-    for i in 0..n {
+    for (i, b) in bodies.iter_mut().enumerate() {
         let root = islands.find(i);
-        if islands.all_idle[root] && !world.bodies[i].asleep {
-            let b = &mut world.bodies[i];
+        if islands.all_idle[root] && !b.asleep {
             b.asleep = true;
             b.state.v.fill(0.0);
-            world.collision.set_asleep(i, true);
+            collision.set_asleep(i, true);
         }
     }
-    world.islands = islands;
+}
+
+/// Wakes multibody `i` (if there is one) and lets its island be evaluated again.
+pub(crate) fn wake(bodies: &mut [Multibody], collision: &mut CollisionWorld, i: usize) {
+    if let Some(b) = bodies.get_mut(i) {
+        b.asleep = false;
+        b.idle_steps = 0;
+        b.idle_time = 0.0;
+        b.history_len = 0;
+        collision.set_asleep(i, false);
+    }
 }
 
 #[cfg(test)]
@@ -144,8 +160,8 @@ mod tests {
     use crate::collision::MeshOptions;
     use crate::math::Vec3;
     use crate::model::{RigidInertia, Shape};
-    use crate::report::stability::free_body;
-    use crate::world::WorldOptions;
+    use crate::scenes::free_body;
+    use crate::world::{World, WorldOptions};
 
     #[test]
     fn velocities_are_averaged_as_vectors_so_jitter_sleeps_and_a_slow_creep_does_not() {
@@ -167,7 +183,9 @@ mod tests {
             w.bodies[jitter].state.v[5] = if k % 2 == 0 { 0.05 } else { -0.05 };
             // A steady 0.02 rad/s: twice the threshold.
             w.bodies[creep].state.v[5] = 0.02;
-            update(&mut w);
+            let (options, h) = (w.options.sleep, w.options.dt);
+            let (contacts, closures) = (&w.contacts, &w.loops.closures);
+            update(&options, h, &mut w.bodies, contacts, closures, &mut w.collision, &mut w.islands);
         }
         assert!(w.bodies[jitter].asleep, "jitter averages out: asleep");
         assert!(!w.bodies[creep].asleep, "a steady creep above the threshold stays awake");

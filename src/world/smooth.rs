@@ -1,8 +1,8 @@
 //! Smooth steps: the integrator choice of [`super::WorldOptions::integrator`] for the steps
 //! without inequality rows.
 //!
-//! The world's contact step is velocity-level semi-implicit Euler (issue 6: "the integrator
-//! choice applies to the smooth part and to scenes without contact"). A step is *smooth* when
+//! The world's contact step is velocity-level semi-implicit Euler; the integrator choice applies
+//! to the smooth part and to scenes without contact. A step is *smooth* when
 //! it has no contact (not even a speculative one within the contact margin), no joint limit
 //! within its margin, no motor, servo, pose servo or joint friction on any multibody, and no
 //! loop closure between two different multibodies; every awake multibody is then advanced by
@@ -32,8 +32,10 @@
 
 use super::multibody::Multibody;
 use super::projection::{cholesky_solve, factor_gram, LoopProjection, ProjectionBuffers};
-use super::{has_active_limit, World};
+use super::stages::rows::has_row_sources;
+use super::WorldOptions;
 use crate::algorithms::{compute_joint_jacobians, crba, factor_mass_matrix, rnea, solve_mass_matrix};
+use crate::collision::Contact;
 use crate::constraints::{
     add_loop_closure_rows, loop_closure_drift_between, FrictionModel, LoopClosure, ProblemBuilder, RowLaw,
     RowOrigin,
@@ -113,25 +115,23 @@ fn closed_loop_tableau(kind: &IntegratorKind) -> Option<(&'static [&'static [f64
 /// velocity-level default, there is no contact, no loop closure between two multibodies (and,
 /// with loop closures, the integrator has a closed-loop tableau), and no multibody has a motor,
 /// servo, pose servo, joint friction or a joint limit within its margin.
-pub(super) fn applies(world: &World) -> bool {
-    let kind = &world.options.integrator;
-    if matches!(kind, IntegratorKind::SemiImplicitEuler) || !world.contacts.is_empty() {
+pub(super) fn applies(
+    options: &WorldOptions,
+    bodies: &[Multibody],
+    contacts: &[Contact],
+    closures: &[(usize, usize, LoopClosure)],
+) -> bool {
+    let kind = &options.integrator;
+    if matches!(kind, IntegratorKind::SemiImplicitEuler) || !contacts.is_empty() {
         return false;
     }
-    if world.loops.iter().any(|(a, b, _)| a != b) {
+    if closures.iter().any(|(a, b, _)| a != b) {
         return false;
     }
-    if !world.loops.is_empty() && closed_loop_tableau(kind).is_none() {
+    if !closures.is_empty() && closed_loop_tableau(kind).is_none() {
         return false;
     }
-    let margin = world.options.limits.margin;
-    !world.bodies.iter().any(|b| {
-        b.motors.iter().any(Option::is_some)
-            || b.servos.iter().any(Option::is_some)
-            || b.pose_servo.is_some()
-            || b.model.friction().iter().any(|f| *f > 0.0)
-            || has_active_limit(b, margin)
-    })
+    !bodies.iter().any(|b| has_row_sources(b, options.limits.margin))
 }
 
 /// How one multibody is stepped smoothly.

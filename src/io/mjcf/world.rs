@@ -1,0 +1,80 @@
+//! A loaded MJCF scene put into a [`World`]: the model as one multibody at MuJoCo's `qpos0`, on the
+//! static geometry, with MuJoCo's time step, gravity and friction model.
+
+use super::MjcfScene;
+use crate::collision::MeshOptions;
+use crate::world::{StepError, World, WorldOptions};
+
+impl MjcfScene {
+    /// World options that follow the scene: `<option timestep>`, its gravity, its friction model
+    /// (`<option cone>`), and as the contact friction coefficient the largest sliding friction of
+    /// any geom, colliding or not (MuJoCo combines two geoms' coefficients by their maximum; a
+    /// world has one coefficient, so geoms of different friction all take the largest). Everything else is
+    /// [`WorldOptions::default`].
+    pub fn world_options(&self) -> WorldOptions {
+        let mu = self.geoms.iter().map(|g| g.friction[0]).chain(self.statics.iter().map(|s| s.friction[0]));
+        let mut options = WorldOptions {
+            dt: self.timestep,
+            gravity: self.gravity,
+            friction: self.friction,
+            ..WorldOptions::default()
+        };
+        options.contact.mu = mu.fold(0.0, f64::max);
+        options
+    }
+
+    /// A world with `options` (usually [`MjcfScene::world_options`]) holding the colliding static
+    /// geoms (material 0) and the model as one multibody named like it, at [`MjcfScene::q0`] and
+    /// at rest. Self-collision stays off, and `<contact><exclude>` and `<flag contact>` are not
+    /// applied: the scenes this serves rest their bodies on static geometry.
+    pub fn into_world(self, options: WorldOptions) -> Result<World, StepError> {
+        let mut world = World::new(options);
+        for s in self.statics.iter().filter(|s| s.collides) {
+            world.add_static(&s.name, &s.shape, s.pose, 0)?;
+        }
+        let name = self.model.name().to_string();
+        let index = world.add_multibody(&name, self.model, &MeshOptions::default())?;
+        world.multibody_mut(index).state.q.copy_from(&self.q0);
+        Ok(world)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::constraints::FrictionModel;
+    use crate::math::Vec3;
+
+    #[test]
+    fn a_loaded_scene_becomes_a_world_with_its_options_statics_and_initial_pose() {
+        let scene = crate::io::mjcf::load_str(
+            r#"<mujoco model="drop"><option timestep="0.004" cone="elliptic" gravity="0 0 -3"/>
+                 <worldbody>
+                   <geom type="plane" size="1 1 0.1" friction="0.4"/>
+                   <geom type="box" size="0.1 0.1 0.1" pos="2 0 0" contype="0" conaffinity="0" friction="0.2"/>
+                   <body name="ball" pos="0 0 1"><freejoint/>
+                     <geom type="sphere" size="0.1" friction="0.9"/></body>
+                 </worldbody></mujoco>"#,
+        )
+        .unwrap();
+        let options = scene.world_options();
+        assert_eq!(options.dt, 0.004);
+        assert_eq!(options.gravity, Vec3::new(0.0, 0.0, -3.0));
+        assert_eq!(options.friction, FrictionModel::Cone);
+        assert_eq!(options.contact.mu, 0.9, "the largest sliding friction of any geom");
+        let q0 = scene.q0.clone();
+        let world = scene.into_world(options).unwrap();
+        assert_eq!(world.multibody_count(), 1);
+        assert_eq!(world.multibody_name(0), "drop");
+        assert_eq!(world.multibody(0).state.q, q0);
+        assert_eq!(world.multibody(0).state.q[2], 1.0);
+        // The plane collides; the box that never collides in MuJoCo is left out.
+        let statics: Vec<&str> = world
+            .collision()
+            .colliders()
+            .iter()
+            .filter(|c| c.attachment().is_static())
+            .map(|c| c.name())
+            .collect();
+        assert_eq!(statics, ["world_geom0"]);
+    }
+}
