@@ -18,7 +18,7 @@ use super::columns::Columns;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::lu::partial_pivoting::{factor, solve};
 use faer::perm::PermRef;
-use faer::{Mat, MatMut, Par};
+use faer::{MatMut, MatRef, Par};
 
 /// Marks "none" in the index maps.
 pub(super) const NONE: usize = usize::MAX;
@@ -40,11 +40,15 @@ pub(super) struct Basis {
     col_var: Vec<usize>,
     /// The position of w_i in B_0 for the other rows, [`NONE`] for the rows of `rows_n`.
     w_pos: Vec<usize>,
-    /// L and U of B_N (unit lower and upper triangle in one k × k matrix) and its row permutation.
-    lu: Mat<f64>,
+    /// L and U of B_N (unit lower and upper triangle in one k × k column-major matrix, in the
+    /// first k² entries; the buffer is kept across refactorizations) and its row permutation.
+    lu: Vec<f64>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     stack: MemBuffer,
+    /// Scratch of the LU factorization, grown as k grows.
+    factor_stack: MemBuffer,
+    factor_stack_k: usize,
     // The eta file: per update its position, pivot entry and off-pivot non-zeros.
     eta_pos: Vec<usize>,
     eta_pivot: Vec<f64>,
@@ -81,10 +85,12 @@ impl Basis {
             col_pos: Vec::new(),
             col_var: Vec::new(),
             w_pos: (0..n).collect(),
-            lu: Mat::zeros(0, 0),
+            lu: Vec::new(),
             perm: Vec::new(),
             perm_inv: Vec::new(),
             stack: MemBuffer::new(solve::solve_in_place_scratch::<usize, f64>(n.max(1), 1, Par::Seq)),
+            factor_stack: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            factor_stack_k: 0,
             eta_pos: Vec::new(),
             eta_pivot: Vec::new(),
             eta_start: vec![0],
@@ -133,7 +139,7 @@ impl Basis {
                 any |= y[slot] != 0.0;
             }
             if any {
-                let lu = self.lu.as_ref();
+                let lu = MatRef::from_column_major_slice(&self.lu[..k * k], k, k);
                 let perm = PermRef::new_checked(&self.perm, &self.perm_inv, k);
                 solve::solve_in_place(
                     lu,
@@ -223,7 +229,8 @@ impl Basis {
         self.eta_value.clear();
         let k = self.rows_n.len();
         debug_assert_eq!(k, self.col_pos.len(), "as many non-unit columns as rows without a basic w");
-        self.lu = Mat::zeros(k, k);
+        self.lu.clear();
+        self.lu.resize(k * k, 0.0);
         self.perm.resize(k, 0);
         self.perm_inv.resize(k, 0);
         if k == 0 {
@@ -233,23 +240,28 @@ impl Basis {
             let (lu, slot) = (&mut self.lu, &self.row_slot);
             cols.for_each(self.col_var[c], |i, v| {
                 if slot[i] != NONE {
-                    lu[(slot[i], c)] = v;
+                    lu[c * k + slot[i]] = v;
                 }
             });
         }
-        let mut buffer =
-            MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(k, k, Par::Seq, Default::default()));
+        if k > self.factor_stack_k {
+            // Room for twice this k: the block grows along the path.
+            let room = (2 * k).min(n);
+            self.factor_stack =
+                MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(room, room, Par::Seq, Default::default()));
+            self.factor_stack_k = room;
+        }
         factor::lu_in_place(
-            self.lu.as_mut(),
+            MatMut::from_column_major_slice_mut(&mut self.lu[..k * k], k, k),
             &mut self.perm,
             &mut self.perm_inv,
             Par::Seq,
-            MemStack::new(&mut buffer),
+            MemStack::new(&mut self.factor_stack),
             Default::default(),
         );
         let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
         for c in 0..k {
-            let u = self.lu[(c, c)].abs();
+            let u = self.lu[c * k + c].abs();
             smallest = smallest.min(u);
             largest = largest.max(u);
         }

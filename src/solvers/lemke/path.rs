@@ -94,7 +94,7 @@ impl<'a> Path<'a> {
             pivots: 0,
             lex_solves: 0,
             x_tol: 1e-11 * q_max.max(1.0),
-            refactor_interval: 16,
+            refactor_interval: if options.refactor_interval > 0 { options.refactor_interval } else { 16 },
             refactor_soon: false,
             unit: vec![0.0; n],
             column: vec![0.0; n],
