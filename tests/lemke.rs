@@ -10,9 +10,9 @@
 
 use gelenk::collision::MeshOptions;
 use gelenk::constraints::{ConstraintProblem, FrictionModel};
+use gelenk::io::problem::{read_problem, CorpusSolver, PROBLEM_FILE};
 use gelenk::math::{Transform, Vec3};
 use gelenk::model::{RigidInertia, Shape};
-use gelenk::io::problem::{read_problem, CorpusSolver, PROBLEM_FILE};
 use gelenk::report::stability::{free_body, options, Setting, TIME_STEPS};
 use gelenk::solvers::{
     lcp_of, lemke, lemke_with_report, residuals, ClarabelSolver, ConstraintSolver, LemkeOptions, LemkeSolver,
@@ -73,7 +73,8 @@ fn p_matrix_lcps_have_their_unique_solution_found() {
             }
         }
         let q = &w - &m * &z;
-        let (found, _) = lemke(&m, &q, &LemkeOptions::default()).unwrap_or_else(|e| panic!("case {case}: {e}"));
+        let (found, _) =
+            lemke(&m, &q, &LemkeOptions::default()).unwrap_or_else(|e| panic!("case {case}: {e}"));
         let (r, z_min) = natural_residual(&m, &q, &found);
         let scale = q.amax().max(1.0);
         assert!(r <= 1e-9 * scale && z_min >= 0.0, "case {case} (n = {n}): residual {r:e}, min z {z_min:e}");
@@ -155,7 +156,10 @@ fn an_lcp_without_solution_ends_on_a_ray_whose_certificate_checks() {
     // The message says what the ray proves.
     let (m, q) = &cases[0];
     let message = lemke(m, q, &LemkeOptions::default()).unwrap_err().to_string();
-    assert!(message.contains("ray termination") && message.contains("proves the LCP infeasible"), "{message}");
+    assert!(
+        message.contains("ray termination") && message.contains("proves the LCP infeasible"),
+        "{message}"
+    );
 
     // M ≤ 0 (not copositive) with some q_i < 0 has no feasible point either (w_i < 0), but a
     // ray need not prove it: the ray itself still checks, and the certificate claims
@@ -292,7 +296,11 @@ fn every_step_of_the_ten_box_stack_is_solved_at_every_time_step() {
         for step in 0..steps {
             let stats = w.step().unwrap_or_else(|e| panic!("dt {dt}, step {step}: {e}"));
             assert!(stats.fallbacks.is_empty(), "dt {dt}, step {step}: {:?}", stats.fallbacks);
-            assert!(stats.contacts == 0 || stats.residual <= 1e-8, "dt {dt}, step {step}: {}", stats.residual);
+            assert!(
+                stats.contacts == 0 || stats.residual <= 1e-8,
+                "dt {dt}, step {step}: {}",
+                stats.residual
+            );
             most_contacts = most_contacts.max(stats.contacts);
         }
         assert!(most_contacts >= 40, "dt {dt}: {most_contacts} contacts at most");
@@ -305,7 +313,13 @@ fn lemke_and_clarabel_agree_on_frictionless_contacts() {
     // w = (A + R) λ + b are unique: Lemke's and clarabel's must agree.
     let mut w = world(1.0 / 240.0, SolverKind::Clarabel);
     for k in 0..4 {
-        add_box(&mut w, &format!("box{k}"), [1.0, 1000.0, 3.0, 0.5][k], 0.05 + 0.1 * k as f64 - 1e-4, 0.3 * k as f64);
+        add_box(
+            &mut w,
+            &format!("box{k}"),
+            [1.0, 1000.0, 3.0, 0.5][k],
+            0.05 + 0.1 * k as f64 - 1e-4,
+            0.3 * k as f64,
+        );
     }
     let mut problem = last_problem(&mut w, 10);
     for block in &mut problem.contacts {

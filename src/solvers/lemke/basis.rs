@@ -247,8 +247,12 @@ impl Basis {
         if k > self.factor_stack_k {
             // Room for twice this k: the block grows along the path.
             let room = (2 * k).min(n);
-            self.factor_stack =
-                MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(room, room, Par::Seq, Default::default()));
+            self.factor_stack = MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(
+                room,
+                room,
+                Par::Seq,
+                Default::default(),
+            ));
             self.factor_stack_k = room;
         }
         factor::lu_in_place(

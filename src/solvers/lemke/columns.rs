@@ -49,25 +49,12 @@ impl Csc {
         self.start.push(self.rows.len());
     }
 
-    /// The dense matrix.
-    #[cfg(test)]
-    pub fn to_dense(&self) -> DMatrix<f64> {
-        let mut m = DMatrix::zeros(self.n, self.n);
-        for j in 0..self.n {
-            let (rows, values) = self.column(j);
-            for (&i, &v) in rows.iter().zip(values) {
-                m[(i, j)] += v;
-            }
-        }
-        m
-    }
-
     /// `diag(row_scale) · self · diag(col_scale)`.
     pub fn scaled(&self, row_scale: &[f64], col_scale: &[f64]) -> Self {
         let mut out = self.clone();
-        for j in 0..self.n {
+        for (j, &c) in col_scale.iter().enumerate().take(self.n) {
             for e in self.start[j]..self.start[j + 1] {
-                out.values[e] *= row_scale[self.rows[e]] * col_scale[j];
+                out.values[e] *= row_scale[self.rows[e]] * c;
             }
         }
         out
