@@ -302,11 +302,29 @@ pub enum SolverError {
     /// The problem's sizes or numbers are inconsistent.
     #[error("invalid problem: {0}")]
     InvalidProblem(String),
-    /// Lemke's method found an unbounded ray: the LCP has no solution it can reach.
-    #[error("Lemke: ray termination after {pivots} pivots (no solution reachable)")]
+    /// Lemke's method left along a secondary ray on every path it tried: no solution is
+    /// reachable from its covering vectors; the certificate of the last ray says how well the
+    /// ray checks against M and q and whether it proves the LCP infeasible.
+    #[error("Lemke: ray termination after {pivots} pivots (no solution reachable): {certificate}")]
     LemkeRay {
-        /// Pivots done.
+        /// Pivots done (over all paths).
         pivots: usize,
+        /// The last path's ray, checked.
+        certificate: Box<crate::solvers::RayCertificate>,
+    },
+    /// Lemke's method came back to a basis it had left: rounding defeated its anti-cycling rule.
+    #[error("Lemke: the path cycled after {pivots} pivots (a basis came back)")]
+    LemkeCycle {
+        /// Pivots done (over all paths).
+        pivots: usize,
+    },
+    /// Lemke's method met a basis whose LU is singular to working precision.
+    #[error("Lemke: singular basis after {pivots} pivots (smallest/largest LU pivot {ratio:.1e})")]
+    LemkeSingularBasis {
+        /// Pivots done (over all paths).
+        pivots: usize,
+        /// min |U_ii| / max |U_ii| of the failed factorization.
+        ratio: f64,
     },
     /// Lemke's method ran out of pivots.
     #[error("Lemke: pivot limit {pivots} reached")]

@@ -17,7 +17,9 @@ mod subspace;
 pub use crate::error::SolverError;
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};
-pub use lemke::{lcp_of, lemke, Lcp, LemkeOptions, LemkeSolver};
+pub use lemke::{
+    lcp_of, lemke, lemke_with_report, Lcp, LemkeOptions, LemkeReport, LemkeSolver, RayCertificate,
+};
 pub use newton::NewtonSolver;
 pub use pgs::{PgsSolver, PgsWorkspace};
 pub use residuals::{residuals, QpResiduals, Residuals};

@@ -1,0 +1,65 @@
+//! Criterion benchmark of Lemke's method on the contact LCPs of two scenes, each problem the
+//! one a world posed at a fixed step:
+//! - `stack10`, step 29: the built-in scene of `gelenk export-problems stack10 --steps 30 --only
+//!   29` (ten boxes, 40 contacts, an 8-facet pyramid: a 400-variable LCP);
+//! - `pile`, step 300: `models/pile.toml` (100 boxes and balls dropped onto a plane, stepped by
+//!   its own PGS chain; 200 contacts at that step, a 2000-variable LCP).
+//!
+//! Before timing, the LCP size, the pivots and the certifying residual (on the pyramid Lemke
+//! solves) are printed; a solve that fails or misses Lemke's 1e-8 m/s aborts the benchmark.
+//!
+//! Run: `cargo bench --bench lemke`.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use gelenk::constraints::{ConstraintProblem, FrictionModel};
+use gelenk::solvers::{lcp_of, residuals, ConstraintSolver, LemkeSolver};
+use gelenk::world::World;
+use nalgebra::DVector;
+use std::hint::black_box;
+use std::path::Path;
+use std::time::Duration;
+
+/// The problem `world` poses at step `step` (counted from 0).
+fn problem_at(mut world: World, step: usize) -> ConstraintProblem {
+    for _ in 0..=step {
+        world.step().expect("the scene steps");
+    }
+    world.problem().clone()
+}
+
+fn bench(c: &mut Criterion) {
+    let pile = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pile.toml");
+    let problems = [
+        ("stack10", problem_at(gelenk::scenes::scene_world("stack10").expect("built-in scene"), 29)),
+        ("pile", problem_at(gelenk::io::scene::load_file(&pile).expect("models/pile.toml").world, 300)),
+    ];
+    let mut group = c.benchmark_group("lemke");
+    group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3)).sample_size(10);
+    for (name, problem) in &problems {
+        let mut solver = LemkeSolver::default();
+        let size = lcp_of(problem, solver.facets).q.len();
+        let mut lambda = DVector::zeros(problem.rows());
+        let info = solver.solve(problem, &mut lambda).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let mut pyramid = problem.clone();
+        if matches!(pyramid.friction, FrictionModel::Cone) {
+            pyramid.friction = FrictionModel::Pyramid { facets: solver.facets };
+        }
+        let residual = solver.certify(&residuals(&pyramid, &lambda, &mut DVector::zeros(0)));
+        assert!(residual <= 1e-8, "{name}: certified residual {residual:e} m/s");
+        eprintln!(
+            "| {name} | {} contacts | {size} LCP variables | {} pivots | residual {residual:.1e} m/s |",
+            problem.contacts.len(),
+            info.iterations
+        );
+        group.bench_function(BenchmarkId::new(*name, size), |b| {
+            b.iter(|| {
+                lambda.fill(0.0);
+                black_box(solver.solve(problem, &mut lambda).is_ok())
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

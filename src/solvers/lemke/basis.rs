@@ -1,0 +1,280 @@
+//! The basis of Lemke's method as a factorization, never an explicit inverse.
+//!
+//! The basis B holds m columns of `[I, −M, −d]` (w_i's column is e_i, z_j's is −M·j, the
+//! artificial z0's is −d). At a refactorization, let N be the rows whose w is not basic (k of
+//! them, as many as the basic columns that are not unit columns). Ordering the rows (N, rest) and
+//! the columns (non-unit, unit), B = [[B_N, 0], [B_S, I]]: only the k × k block B_N is
+//! factorized, by LU with partial pivoting (faer), and a solve costs the LU's two triangular
+//! solves plus one pass over the non-unit columns' entries. Lemke's basis starts as I and its
+//! k grows only with the variables that become active, so k is often far below m.
+//!
+//! Between refactorizations each column replacement appends an eta vector (the product form
+//! B_t = B_0 E_1 ⋯ E_t, E_s the identity with column r_s replaced by B_{s−1}⁻¹ a_s; Dantzig &
+//! Orchard-Hays 1954): a solve applies B_0⁻¹ and then each E_s⁻¹ at the cost of its non-zeros.
+//! The caller refactorizes after a number of updates chosen to balance the LU's O(k³) against
+//! the etas' growing cost, and whenever accuracy is in doubt.
+
+use super::columns::Columns;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::lu::partial_pivoting::{factor, solve};
+use faer::perm::PermRef;
+use faer::{MatMut, MatRef, Par};
+
+/// Marks "none" in the index maps.
+pub(super) const NONE: usize = usize::MAX;
+
+/// A factorized basis with its eta file.
+pub(super) struct Basis {
+    n: usize,
+    /// The basic variable at each position (w_i = i, z_j = n + j, z0 = 2n).
+    pub vars: Vec<usize>,
+    /// The position of each variable, [`NONE`] when non-basic.
+    pub position: Vec<usize>,
+    // The basis B_0 of the last refactorization.
+    /// Rows whose w was non-basic, in the LU's row order.
+    rows_n: Vec<usize>,
+    /// The slot of each row in `rows_n`, or [`NONE`].
+    row_slot: Vec<usize>,
+    /// Per LU column: its position in B_0 and the variable that held it.
+    col_pos: Vec<usize>,
+    col_var: Vec<usize>,
+    /// The position of w_i in B_0 for the other rows, [`NONE`] for the rows of `rows_n`.
+    w_pos: Vec<usize>,
+    /// L and U of B_N (unit lower and upper triangle in one k × k column-major matrix, in the
+    /// first k² entries; the buffer is kept across refactorizations) and its row permutation.
+    lu: Vec<f64>,
+    perm: Vec<usize>,
+    perm_inv: Vec<usize>,
+    stack: MemBuffer,
+    /// Scratch of the LU factorization, grown as k grows.
+    factor_stack: MemBuffer,
+    factor_stack_k: usize,
+    // The eta file: per update its position, pivot entry and off-pivot non-zeros.
+    eta_pos: Vec<usize>,
+    eta_pivot: Vec<f64>,
+    eta_start: Vec<usize>,
+    eta_index: Vec<usize>,
+    eta_value: Vec<f64>,
+    /// Scratch: a right-hand side by row, and the k-vector of the LU solve.
+    work: Vec<f64>,
+    small: Vec<f64>,
+    /// Refactorizations done.
+    pub refactorizations: usize,
+}
+
+/// Why a refactorization failed: B_N's LU has a pivot this small relative to its largest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Singular {
+    /// min |U_ii| / max |U_ii|.
+    pub ratio: f64,
+}
+
+impl Basis {
+    /// The starting basis: every w basic at its own position (B = I).
+    pub fn identity(n: usize) -> Self {
+        let mut position = vec![NONE; 2 * n + 1];
+        for (i, p) in position.iter_mut().enumerate().take(n) {
+            *p = i;
+        }
+        Self {
+            n,
+            vars: (0..n).collect(),
+            position,
+            rows_n: Vec::new(),
+            row_slot: vec![NONE; n],
+            col_pos: Vec::new(),
+            col_var: Vec::new(),
+            w_pos: (0..n).collect(),
+            lu: Vec::new(),
+            perm: Vec::new(),
+            perm_inv: Vec::new(),
+            stack: MemBuffer::new(solve::solve_in_place_scratch::<usize, f64>(n.max(1), 1, Par::Seq)),
+            factor_stack: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            factor_stack_k: 0,
+            eta_pos: Vec::new(),
+            eta_pivot: Vec::new(),
+            eta_start: vec![0],
+            eta_index: Vec::new(),
+            eta_value: Vec::new(),
+            work: vec![0.0; n],
+            small: vec![0.0; n],
+            refactorizations: 0,
+        }
+    }
+
+    /// Number of eta updates since the last refactorization.
+    pub fn updates(&self) -> usize {
+        self.eta_pos.len()
+    }
+
+    /// Size k of the factorized block at the last refactorization.
+    pub fn factorized_size(&self) -> usize {
+        self.rows_n.len()
+    }
+
+    /// Solves B x = a: `a` by row, `x` by position (FTRAN).
+    pub fn solve(&mut self, cols: &Columns, a: &[f64], x: &mut [f64]) {
+        debug_assert!(a.len() == self.n && x.len() == self.n);
+        self.work.copy_from_slice(a);
+        self.solve_b0_from_work(cols, x);
+        self.apply_etas(x);
+    }
+
+    /// Solves B x = col(var) for a column of `[I, −M, −d]`.
+    pub fn solve_column(&mut self, cols: &Columns, var: usize, x: &mut [f64]) {
+        self.work.fill(0.0);
+        cols.for_each(var, |i, v| self.work[i] = v);
+        self.solve_b0_from_work(cols, x);
+        self.apply_etas(x);
+    }
+
+    /// x = B_0⁻¹ work (work by row, destroyed).
+    fn solve_b0_from_work(&mut self, cols: &Columns, x: &mut [f64]) {
+        let k = self.rows_n.len();
+        if k > 0 {
+            let y = &mut self.small[..k];
+            let mut any = false;
+            for (slot, &i) in self.rows_n.iter().enumerate() {
+                y[slot] = self.work[i];
+                any |= y[slot] != 0.0;
+            }
+            if any {
+                let lu = MatRef::from_column_major_slice(&self.lu[..k * k], k, k);
+                let perm = PermRef::new_checked(&self.perm, &self.perm_inv, k);
+                solve::solve_in_place(
+                    lu,
+                    lu,
+                    perm,
+                    MatMut::from_column_major_slice_mut(y, k, 1),
+                    Par::Seq,
+                    MemStack::new(&mut self.stack),
+                );
+            }
+            for c in 0..k {
+                let yc = y[c];
+                x[self.col_pos[c]] = yc;
+                if yc != 0.0 {
+                    let work = &mut self.work;
+                    cols.for_each(self.col_var[c], |i, v| work[i] -= v * yc);
+                }
+            }
+        }
+        for (i, &p) in self.w_pos.iter().enumerate() {
+            if p != NONE {
+                x[p] = self.work[i];
+            }
+        }
+    }
+
+    /// x ← E_t⁻¹ ⋯ E_1⁻¹ x.
+    fn apply_etas(&self, x: &mut [f64]) {
+        for t in 0..self.eta_pos.len() {
+            let r = self.eta_pos[t];
+            let xr = x[r] / self.eta_pivot[t];
+            x[r] = xr;
+            if xr != 0.0 {
+                let range = self.eta_start[t]..self.eta_start[t + 1];
+                for (&i, &v) in self.eta_index[range.clone()].iter().zip(&self.eta_value[range]) {
+                    x[i] -= v * xr;
+                }
+            }
+        }
+    }
+
+    /// Replaces the variable at position `r` by `entering`, whose column solved against the
+    /// current basis is `alpha` (by position); returns the variable that left.
+    pub fn replace(&mut self, r: usize, entering: usize, alpha: &[f64]) -> usize {
+        self.eta_pos.push(r);
+        self.eta_pivot.push(alpha[r]);
+        for (i, &v) in alpha.iter().enumerate() {
+            if i != r && v != 0.0 {
+                self.eta_index.push(i);
+                self.eta_value.push(v);
+            }
+        }
+        self.eta_start.push(self.eta_index.len());
+        let leaving = std::mem::replace(&mut self.vars[r], entering);
+        self.position[leaving] = NONE;
+        self.position[entering] = r;
+        leaving
+    }
+
+    /// Factorizes the current basis anew (and empties the eta file).
+    pub fn refactor(&mut self, cols: &Columns) -> Result<(), Singular> {
+        let n = self.n;
+        self.refactorizations += 1;
+        self.rows_n.clear();
+        self.row_slot.fill(NONE);
+        for i in 0..n {
+            if self.position[i] == NONE {
+                self.row_slot[i] = self.rows_n.len();
+                self.rows_n.push(i);
+            }
+        }
+        self.col_pos.clear();
+        self.col_var.clear();
+        for (p, &var) in self.vars.iter().enumerate() {
+            if var >= n {
+                self.col_pos.push(p);
+                self.col_var.push(var);
+            }
+        }
+        for i in 0..n {
+            self.w_pos[i] = self.position[i];
+        }
+        self.eta_pos.clear();
+        self.eta_pivot.clear();
+        self.eta_start.truncate(1);
+        self.eta_index.clear();
+        self.eta_value.clear();
+        let k = self.rows_n.len();
+        debug_assert_eq!(k, self.col_pos.len(), "as many non-unit columns as rows without a basic w");
+        self.lu.clear();
+        self.lu.resize(k * k, 0.0);
+        self.perm.resize(k, 0);
+        self.perm_inv.resize(k, 0);
+        if k == 0 {
+            return Ok(());
+        }
+        for c in 0..k {
+            let (lu, slot) = (&mut self.lu, &self.row_slot);
+            cols.for_each(self.col_var[c], |i, v| {
+                if slot[i] != NONE {
+                    lu[c * k + slot[i]] = v;
+                }
+            });
+        }
+        if k > self.factor_stack_k {
+            // Room for twice this k: the block grows along the path.
+            let room = (2 * k).min(n);
+            self.factor_stack = MemBuffer::new(factor::lu_in_place_scratch::<usize, f64>(
+                room,
+                room,
+                Par::Seq,
+                Default::default(),
+            ));
+            self.factor_stack_k = room;
+        }
+        factor::lu_in_place(
+            MatMut::from_column_major_slice_mut(&mut self.lu[..k * k], k, k),
+            &mut self.perm,
+            &mut self.perm_inv,
+            Par::Seq,
+            MemStack::new(&mut self.factor_stack),
+            Default::default(),
+        );
+        let (mut smallest, mut largest) = (f64::INFINITY, 0.0f64);
+        for c in 0..k {
+            let u = self.lu[c * k + c].abs();
+            smallest = smallest.min(u);
+            largest = largest.max(u);
+        }
+        let ratio = if largest > 0.0 { smallest / largest } else { 0.0 };
+        // NaN fails this test too.
+        if ratio > 1e-15 {
+            Ok(())
+        } else {
+            Err(Singular { ratio })
+        }
+    }
+}

@@ -1,0 +1,309 @@
+//! One complementary pivoting path of Lemke's method (Cottle, Pang & Stone, "The Linear
+//! Complementarity Problem", §4.4) on `I w − M z − d z0 = q` with a positive covering vector d:
+//! z0 enters at the row of the most negative q_i / d_i, then each pivot brings in the complement
+//! of the variable that just left, until z0 leaves (a solution), the entering column has no
+//! positive entry (a secondary ray) or the pivot limit is reached.
+//!
+//! The minimum-ratio test is lexicographic (Cottle, Pang & Stone §4.9): among rows whose ratios
+//! tie, the one whose row of `B⁻¹ / α_i` is lexicographically smallest, which is the exact
+//! outcome of perturbing q by (ε, ε², …, εⁿ) and never cycles. Column j of B⁻¹ is read by a
+//! solve with e_j — or for free when w_j is basic at position p, as then B⁻¹ e_j = e_p — and
+//! only as many columns are read as the tie needs.
+
+use super::basis::{Basis, Singular, NONE};
+use super::columns::Columns;
+
+/// How a path ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum PathEnd {
+    /// z0 left the basis: the basic values are a solution (of the problem the path solved).
+    Solved,
+    /// The entering variable's column (in `Path::alpha`) has no positive entry: the path leaves
+    /// along a secondary ray.
+    Ray {
+        /// The variable that could not enter.
+        entering: usize,
+    },
+    /// The pivot limit was reached.
+    PivotLimit,
+    /// A basis came back (rounding defeated the anti-cycling rule): the path would cycle.
+    Cycle,
+    /// A refactorization found the basis singular.
+    Singular(Singular),
+}
+
+/// Tolerances and limits of a path.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PathOptions {
+    /// Pivots allowed.
+    pub max_pivots: usize,
+    /// A column entry must exceed this fraction of the column's largest to be a pivot.
+    pub pivot_tolerance: f64,
+    /// Updates between refactorizations (0: chosen from the sizes).
+    pub refactor_interval: usize,
+}
+
+/// A pivoting path: its basis, basic values and counters.
+pub(super) struct Path<'a> {
+    cols: &'a Columns,
+    q: &'a [f64],
+    options: PathOptions,
+    /// The factorized basis.
+    pub basis: Basis,
+    /// Basic values, by position.
+    pub x: Vec<f64>,
+    /// The last entering column solved against the basis, by position.
+    pub alpha: Vec<f64>,
+    /// Pivots done.
+    pub pivots: usize,
+    /// Solves with unit vectors done by the lexicographic tie-break.
+    pub lex_solves: usize,
+    /// Harris's tolerance δ: basic values at most this large count as zero in the ratio test
+    /// (degenerate rows), and a pivot may leave one at −δ.
+    x_tol: f64,
+    refactor_interval: usize,
+    refactor_soon: bool,
+    unit: Vec<f64>,
+    column: Vec<f64>,
+    ties: Vec<usize>,
+    /// Zobrist hash of the set of basic variables, and the hashes seen on this path.
+    basis_hash: u64,
+    seen: std::collections::HashSet<u64>,
+}
+
+/// A pseudo-random 64-bit key of variable `var` (SplitMix64), for the basis hash.
+fn key(var: usize) -> u64 {
+    let mut z = (var as u64).wrapping_add(1).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+impl<'a> Path<'a> {
+    /// A path for `q` with the columns `cols` (which hold the covering vector).
+    pub fn new(cols: &'a Columns, q: &'a [f64], options: PathOptions) -> Self {
+        let n = cols.n();
+        let q_max = q.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
+        Self {
+            cols,
+            q,
+            options,
+            basis: Basis::identity(n),
+            x: q.to_vec(),
+            alpha: vec![0.0; n],
+            pivots: 0,
+            lex_solves: 0,
+            x_tol: 1e-11 * q_max.max(1.0),
+            refactor_interval: if options.refactor_interval > 0 { options.refactor_interval } else { 16 },
+            refactor_soon: false,
+            unit: vec![0.0; n],
+            column: vec![0.0; n],
+            ties: Vec::new(),
+            basis_hash: (0..n).fold(0, |h, var| h ^ key(var)),
+            seen: std::collections::HashSet::new(),
+        }
+    }
+
+    /// Runs the path to its end.
+    pub fn run(&mut self) -> PathEnd {
+        let n = self.cols.n();
+        let z0 = 2 * n;
+        if self.q.iter().all(|&v| v >= 0.0) {
+            return PathEnd::Solved;
+        }
+        self.basis.solve_column(self.cols, z0, &mut self.alpha);
+        let row = self.first_row();
+        let mut leaving = self.pivot(row, z0, true);
+        loop {
+            if leaving == z0 {
+                return PathEnd::Solved;
+            }
+            if self.pivots >= self.options.max_pivots {
+                return PathEnd::PivotLimit;
+            }
+            if !self.seen.insert(self.basis_hash) {
+                return PathEnd::Cycle;
+            }
+            if self.refactor_soon || self.basis.updates() >= self.refactor_interval {
+                if let Err(singular) = self.refactor() {
+                    return PathEnd::Singular(singular);
+                }
+            }
+            let entering = if leaving < n { leaving + n } else { leaving - n };
+            self.basis.solve_column(self.cols, entering, &mut self.alpha);
+            match self.ratio_test() {
+                Some(row) => leaving = self.pivot(row, entering, false),
+                None => return PathEnd::Ray { entering },
+            }
+        }
+    }
+
+    /// Factorizes the basis anew, recomputes the basic values from q and picks the next
+    /// refactorization interval: about √(⅔k³ / n) updates balance the LU's ⅔k³ flops against
+    /// the etas' O(n) per solve (two solves per pivot), within [16, 128].
+    pub fn refactor(&mut self) -> Result<(), Singular> {
+        self.basis.refactor(self.cols)?;
+        self.basis.solve(self.cols, self.q, &mut self.x);
+        self.refactor_soon = false;
+        self.refactor_interval = if self.options.refactor_interval > 0 {
+            self.options.refactor_interval
+        } else {
+            let k = self.basis.factorized_size() as f64;
+            let n = self.cols.n().max(1) as f64;
+            ((2.0 / 3.0 * k * k * k / n).sqrt() as usize).clamp(16, 128)
+        };
+        Ok(())
+    }
+
+    /// The first pivot's row: the lexicographic minimum of (q_i, e_iᵀ) / d_i, that is the most
+    /// negative q_i / d_i and, among ties, the largest index (ε^i is smallest there).
+    fn first_row(&self) -> usize {
+        let d = &self.cols.d;
+        let ratio = |i: usize| self.q[i] / d[i];
+        let best = (0..self.q.len()).map(ratio).fold(f64::INFINITY, f64::min);
+        let tie = 1e-12 * best.abs();
+        (0..self.q.len()).rev().find(|&i| ratio(i) <= best + tie).unwrap_or(0)
+    }
+
+    /// Pivots `entering` (its column in `alpha`) in at position `row`; returns the variable
+    /// that left. The first pivot (z0 in, α_r = −d_r < 0, q_r < 0) takes x_r / α_r as it is;
+    /// later pivots clamp a rounding-negative x_r to a zero step.
+    fn pivot(&mut self, row: usize, entering: usize, first: bool) -> usize {
+        let a_r = self.alpha[row];
+        let theta = if first { self.x[row] / a_r } else { self.x[row].max(0.0) / a_r };
+        for (x, &a) in self.x.iter_mut().zip(&self.alpha) {
+            *x -= theta * a;
+        }
+        self.x[row] = theta;
+        let a_max = self.alpha.iter().fold(0.0f64, |m, &v| m.max(v.abs()));
+        // A small pivot makes the eta ill-conditioned: start over from a fresh factorization.
+        self.refactor_soon |= a_r.abs() < 1e-6 * a_max;
+        self.pivots += 1;
+        let leaving = self.basis.replace(row, entering, &self.alpha);
+        self.basis_hash ^= key(leaving) ^ key(entering);
+        leaving
+    }
+
+    /// The ratio test on `alpha`; `None` if no entry is a pivot.
+    ///
+    /// Harris's two passes (Harris 1973) with the lexicographic rule for degenerate rows: the
+    /// bound θ_max = min (x_i + δ) / α_i over pivot entries admits every row whose ratio is
+    /// within it (a basic value may then overshoot zero by at most δ); among them only pivots
+    /// within a factor of 10 of the largest are taken, so that a column entry that is zero up
+    /// to rounding never becomes a pivot because its row's ratio happens to be smallest. Among
+    /// the admitted rows, the degenerate ones (x_i ≤ δ) go to the lexicographic rule; without
+    /// any, the largest pivot is taken. z0's row wins whenever it is admitted.
+    fn ratio_test(&mut self) -> Option<usize> {
+        let a_max = self.alpha.iter().fold(0.0f64, |m, &v| m.max(v.abs()));
+        if a_max == 0.0 {
+            return None;
+        }
+        let eps = self.options.pivot_tolerance * a_max;
+        let delta = self.x_tol;
+        let value = |x: f64| if x > delta { x } else { 0.0 };
+        let mut theta_max = f64::INFINITY;
+        for (&x, &a) in self.x.iter().zip(&self.alpha) {
+            if a > eps {
+                theta_max = theta_max.min((value(x) + delta) / a);
+            }
+        }
+        if theta_max == f64::INFINITY {
+            return None;
+        }
+        let admitted = |x: f64, a: f64| a > eps && value(x) / a <= theta_max;
+        let z0_at = self.basis.position[2 * self.cols.n()];
+        if z0_at != NONE && admitted(self.x[z0_at], self.alpha[z0_at]) {
+            return Some(z0_at);
+        }
+        let mut a_big = 0.0f64;
+        for (&x, &a) in self.x.iter().zip(&self.alpha) {
+            if admitted(x, a) {
+                a_big = a_big.max(a);
+            }
+        }
+        let floor = 0.1 * a_big;
+        self.ties.clear();
+        let mut largest = None;
+        for (i, (&x, &a)) in self.x.iter().zip(&self.alpha).enumerate() {
+            if a >= floor && admitted(x, a) {
+                if value(x) == 0.0 {
+                    self.ties.push(i);
+                }
+                if largest.is_none_or(|(_, b)| a > b) {
+                    largest = Some((i, a));
+                }
+            }
+        }
+        match self.ties.len() {
+            0 => largest.map(|(i, _)| i),
+            1 => Some(self.ties[0]),
+            _ => Some(self.lexicographic_tie_break()),
+        }
+    }
+
+    /// Narrows `ties` column by column of B⁻¹ (scaled by 1/α_i) to the lexicographic minimum.
+    fn lexicographic_tie_break(&mut self) -> usize {
+        let n = self.cols.n();
+        for j in 0..n {
+            if self.ties.len() <= 1 {
+                break;
+            }
+            let p = self.basis.position[j];
+            if p != NONE {
+                // Column j of B⁻¹ is e_p: row p has 1/α_p > 0 there, every other tied row 0.
+                if let Some(at) = self.ties.iter().position(|&i| i == p) {
+                    self.ties.swap_remove(at);
+                }
+                continue;
+            }
+            self.unit.fill(0.0);
+            self.unit[j] = 1.0;
+            self.basis.solve(self.cols, &self.unit, &mut self.column);
+            self.lex_solves += 1;
+            let (column, alpha) = (&self.column, &self.alpha);
+            let scaled = |i: usize| column[i] / alpha[i];
+            let largest = self.ties.iter().fold(0.0f64, |m, &i| m.max(scaled(i).abs()));
+            if largest == 0.0 {
+                continue;
+            }
+            let smallest = self.ties.iter().map(|&i| scaled(i)).fold(f64::INFINITY, f64::min);
+            let limit = smallest + 1e-9 * largest;
+            self.ties.retain(|&i| scaled(i) <= limit);
+        }
+        // Ties left over all n columns are rounding (B⁻¹ has independent rows): take the
+        // largest pivot entry.
+        let alpha = &self.alpha;
+        self.ties.iter().copied().max_by(|&a, &b| alpha[a].total_cmp(&alpha[b])).unwrap_or(0)
+    }
+
+    /// The value of variable `var` (0 when non-basic).
+    pub fn value(&self, var: usize) -> f64 {
+        match self.basis.position[var] {
+            NONE => 0.0,
+            p => self.x[p],
+        }
+    }
+
+    /// Refactorizes and recomputes the basic values with `steps` rounds of iterative refinement
+    /// (x ← x + B⁻¹(q − B x), the residual formed from the columns themselves).
+    pub fn polish(&mut self, steps: usize) -> Result<(), Singular> {
+        self.refactor()?;
+        let n = self.cols.n();
+        let mut residual = vec![0.0; n];
+        let mut correction = vec![0.0; n];
+        for _ in 0..steps {
+            residual.copy_from_slice(self.q);
+            for (p, &var) in self.basis.vars.iter().enumerate() {
+                let xp = self.x[p];
+                if xp != 0.0 {
+                    self.cols.for_each(var, |i, v| residual[i] -= v * xp);
+                }
+            }
+            self.basis.solve(self.cols, &residual, &mut correction);
+            for (x, c) in self.x.iter_mut().zip(&correction) {
+                *x += c;
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,345 @@
+//! Pins Lemke's method with its factorized basis: it finds the unique solution of random LCPs
+//! with a P-matrix; it solves degenerate LCPs (rank-deficient M, ties in the ratio test) and
+//! gives the same answer whether the basis is refactorized after every pivot or after many; an
+//! LCP without solution ends on a secondary ray whose certificate is checked here against M and
+//! q independently of the solver; every problem of the committed corpus (`tests/problems/`), a
+//! heavy box on a light one (mass ratio 1:1000), a 400-variable stack of ten boxes and every step
+//! of the ten-box stack of the hard cases at each time step of the stability table are solved to
+//! residuals certified by the shared `solvers::residuals`; on frictionless contacts, whose row
+//! velocities are unique, Lemke and clarabel agree.
+
+use gelenk::collision::MeshOptions;
+use gelenk::constraints::{ConstraintProblem, FrictionModel};
+use gelenk::io::problem::{read_problem, CorpusSolver, PROBLEM_FILE};
+use gelenk::math::{Transform, Vec3};
+use gelenk::model::{RigidInertia, Shape};
+use gelenk::report::stability::{free_body, options, Setting, TIME_STEPS};
+use gelenk::solvers::{
+    lcp_of, lemke, lemke_with_report, residuals, ClarabelSolver, ConstraintSolver, LemkeOptions, LemkeSolver,
+    SolverError,
+};
+use gelenk::world::{SolverKind, World, WorldOptions};
+use nalgebra::{DMatrix, DVector};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+/// max |min(z_i, w_i)| with w = M z + q, and min(z).
+fn natural_residual(m: &DMatrix<f64>, q: &DVector<f64>, z: &DVector<f64>) -> (f64, f64) {
+    let w = m * z + q;
+    let r = z.iter().zip(w.iter()).fold(0.0f64, |r, (z, w)| r.max(z.min(*w).abs()));
+    (r, z.min())
+}
+
+/// A random LCP with a known solution whose M = B Bᵀ has rank `rank` < n (redundant rows,
+/// as four coplanar corners give) and whose solution is degenerate: about a third of the
+/// pairs have z_i = w_i = 0.
+fn degenerate_lcp(rng: &mut StdRng, n: usize, rank: usize) -> (DMatrix<f64>, DVector<f64>) {
+    let b = DMatrix::from_fn(n, rank, |_, _| rng.random_range(-1.0..1.0));
+    // Duplicate rows make ratio ties exact: rows 2i+1 copy rows 2i for the first few.
+    let mut b = b;
+    for i in 0..n / 6 {
+        let row = b.row(2 * i).into_owned();
+        b.row_mut(2 * i + 1).copy_from(&row);
+    }
+    let m = &b * b.transpose();
+    let (mut z, mut w) = (DVector::zeros(n), DVector::zeros(n));
+    for i in 0..n {
+        match rng.random_range(0..3) {
+            0 => z[i] = rng.random_range(0.1..1.0),
+            1 => w[i] = rng.random_range(0.1..1.0),
+            _ => {}
+        }
+    }
+    let q = &w - &m * &z;
+    (m, q)
+}
+
+#[test]
+fn p_matrix_lcps_have_their_unique_solution_found() {
+    // M = B Bᵀ + S + δ I with S skew-symmetric is positive definite, hence a P-matrix: the LCP
+    // has exactly one solution, the z the test built q from.
+    for case in 0..40u64 {
+        let mut rng = StdRng::seed_from_u64(0x9a7e_0000 + case);
+        let n = rng.random_range(1..=120);
+        let b = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+        let s = DMatrix::from_fn(n, n, |_, _| rng.random_range(-1.0..1.0));
+        let m = &b * b.transpose() + (&s - s.transpose()) + DMatrix::identity(n, n) * 0.1;
+        let (mut z, mut w) = (DVector::zeros(n), DVector::zeros(n));
+        for i in 0..n {
+            if rng.random_bool(0.5) {
+                z[i] = rng.random_range(0.1..2.0);
+            } else {
+                w[i] = rng.random_range(0.1..2.0);
+            }
+        }
+        let q = &w - &m * &z;
+        let (found, _) =
+            lemke(&m, &q, &LemkeOptions::default()).unwrap_or_else(|e| panic!("case {case}: {e}"));
+        let (r, z_min) = natural_residual(&m, &q, &found);
+        let scale = q.amax().max(1.0);
+        assert!(r <= 1e-9 * scale && z_min >= 0.0, "case {case} (n = {n}): residual {r:e}, min z {z_min:e}");
+        let error = (&found - &z).amax();
+        assert!(error <= 1e-6 * z.amax().max(1.0), "case {case} (n = {n}): |z − z*| = {error:e}");
+    }
+}
+
+#[test]
+fn degenerate_lcps_are_solved_and_refactorization_does_not_change_the_answer() {
+    let mut most_pivots = 0;
+    for case in 0..40u64 {
+        let mut rng = StdRng::seed_from_u64(0xde9e_0000 + case);
+        let n = rng.random_range(4..=80);
+        let rank = (n / 2).max(1);
+        let (m, q) = degenerate_lcp(&mut rng, n, rank);
+        let (z, report) = lemke_with_report(&m, &q, &LemkeOptions::default())
+            .unwrap_or_else(|e| panic!("case {case} (n = {n}, rank {rank}): {e}"));
+        let (r, z_min) = natural_residual(&m, &q, &z);
+        let scale = q.amax().max(1.0);
+        assert!(r <= 1e-9 * scale && z_min >= 0.0, "case {case}: residual {r:e}, min z {z_min:e}");
+        assert!((report.residual - r).abs() <= 1e-12 * scale, "case {case}: the report states the residual");
+        most_pivots = most_pivots.max(report.pivots);
+        // Refactorizing after every pivot (no eta file) solves it too, to the same w: w = M z + q
+        // is unique for positive semi-definite M, z need not be.
+        let every = LemkeOptions { refactor_interval: 1, ..Default::default() };
+        let (z1, report1) = lemke_with_report(&m, &q, &every).unwrap_or_else(|e| panic!("case {case}: {e}"));
+        assert!(report1.refactorizations >= report1.pivots.saturating_sub(1), "case {case}: {report1:?}");
+        let dw = (&m * (&z1 - &z)).amax();
+        assert!(dw <= 1e-8 * scale, "case {case}: w differs by {dw:e} between refactorization intervals");
+    }
+    eprintln!("degenerate LCPs: most pivots {most_pivots}");
+}
+
+#[test]
+fn an_lcp_without_solution_ends_on_a_ray_whose_certificate_checks() {
+    // Infeasible LCPs with copositive-plus M, for which a ray proves infeasibility (Cottle, Pang
+    // & Stone, Theorem 4.4.13): 1 × 1 and 2 × 2 examples, and M = B Bᵀ (60 × 60) whose B has
+    // rows in pairs b, −b, so that y = 1 has Mᵀy = 0, with Σ q_i < 0.
+    let mut rng = StdRng::seed_from_u64(7);
+    let n = 60;
+    let mut b = DMatrix::from_fn(n, 20, |_, _| rng.random_range(-1.0..1.0));
+    for i in 0..n / 2 {
+        let row = -b.row(2 * i).into_owned();
+        b.row_mut(2 * i + 1).copy_from(&row);
+    }
+    let big_q = DVector::from_fn(n, |_, _| rng.random_range(-1.0..0.5));
+    assert!(big_q.sum() < 0.0);
+    let cases = [
+        // 0 · z − 1 ≥ 0 is impossible.
+        (DMatrix::from_element(1, 1, 0.0), DVector::from_element(1, -1.0)),
+        // w1 = z1 − z2 − 1, w2 = −z1 + z2 − 1: w1 + w2 = −2 < 0 for every z.
+        (DMatrix::from_row_slice(2, 2, &[1.0, -1.0, -1.0, 1.0]), DVector::from_row_slice(&[-1.0, -1.0])),
+        (&b * b.transpose(), big_q),
+    ];
+    for (label, (m, q)) in cases.iter().enumerate() {
+        let certificate = match lemke(m, q, &LemkeOptions::default()) {
+            Err(SolverError::LemkeRay { certificate, .. }) => certificate,
+            other => panic!("case {label}: expected a ray, got {other:?}"),
+        };
+        eprintln!("case {label}: {certificate}");
+        // The solver's own check of the ray…
+        assert!(certificate.ray_error <= 1e-9, "case {label}: ray error {:e}", certificate.ray_error);
+        assert!(certificate.start_z0 > 0.0 && certificate.direction_z0 >= 0.0, "case {label}");
+        assert!(certificate.infeasible, "case {label}: {certificate}");
+        // …and an independent one: y = dz ≥ 0, Mᵀy ≤ 0, qᵀy < 0 (Farkas).
+        let y = DVector::from_column_slice(&certificate.direction);
+        assert!(y.min() >= 0.0 && y.max() > 0.0, "case {label}: y = {y}");
+        let mty = m.transpose() * &y;
+        assert!(mty.max() <= 1e-12 * m.amax() * y.sum(), "case {label}: Mᵀy = {mty}");
+        assert!(q.dot(&y) < 0.0, "case {label}: qᵀy = {}", q.dot(&y));
+        assert_eq!(certificate.q_dot_y, q.dot(&y), "case {label}");
+        // Along the ray, z(t) = z* + t dz stays ≥ 0 and M z(t) + q + d z0(t) ≥ 0 for every t ≥ 0
+        // with d the covering vector, which the certificate does not store: at least the
+        // z-part is nonnegative at t = 0 and t = 1e6.
+        let start = DVector::from_column_slice(&certificate.start);
+        assert!(start.min() >= 0.0 && (&start + &y * 1e6).min() >= 0.0, "case {label}");
+    }
+    // The message says what the ray proves.
+    let (m, q) = &cases[0];
+    let message = lemke(m, q, &LemkeOptions::default()).unwrap_err().to_string();
+    assert!(
+        message.contains("ray termination") && message.contains("proves the LCP infeasible"),
+        "{message}"
+    );
+
+    // M ≤ 0 (not copositive) with some q_i < 0 has no feasible point either (w_i < 0), but a
+    // ray need not prove it: the ray itself still checks, and the certificate claims
+    // infeasibility only with a valid proof.
+    let m = DMatrix::from_fn(50, 50, |_, _| -rng.random_range(0.0..1.0));
+    let q = DVector::from_fn(50, |i, _| if i % 7 == 3 { -1.0 } else { rng.random_range(0.1..1.0) });
+    match lemke(&m, &q, &LemkeOptions::default()) {
+        Err(SolverError::LemkeRay { certificate, .. }) => {
+            eprintln!("M ≤ 0: {certificate}");
+            assert!(certificate.ray_error <= 1e-9, "{certificate}");
+            let y = DVector::from_column_slice(&certificate.direction).map(|x| x.max(0.0));
+            let proves = (m.transpose() * &y).max() <= 1e-12 * m.amax() * y.sum() && q.dot(&y) < 0.0;
+            assert_eq!(certificate.infeasible, proves, "{certificate}");
+        }
+        other => panic!("M ≤ 0: expected a ray, got {other:?}"),
+    }
+}
+
+/// A world with a ground plane, friction μ = 0.5 and `solver`.
+fn world(dt: f64, solver: SolverKind) -> World {
+    let mut options = WorldOptions { dt, solvers: vec![solver], accept_last: true, ..Default::default() };
+    options.sleep.enabled = false;
+    options.contact.mu = 0.5;
+    let mut w = World::new(options);
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+    w
+}
+
+/// Adds a free 0.1 m box of `mass` kg resting at height `z` (its centre).
+fn add_box(w: &mut World, name: &str, mass: f64, z: f64, yaw: f64) {
+    let size = Vec3::repeat(0.1);
+    let model = free_body(name, Shape::Box { size }, RigidInertia::solid_box(mass, size));
+    let m = w.add_multibody(name, model, &MeshOptions::default()).unwrap();
+    let q = &mut w.multibody_mut(m).state.q;
+    q[2] = z;
+    let half = 0.5 * yaw;
+    q[5] = half.sin();
+    q[6] = half.cos();
+}
+
+/// The problem of the world's last step (its rows as posed before the solve).
+fn last_problem(w: &mut World, steps: usize) -> ConstraintProblem {
+    for _ in 0..steps {
+        w.step().unwrap();
+    }
+    w.problem().clone()
+}
+
+/// Lemke on `problem` (friction cone as an 8-facet pyramid): the impulses and the certifying
+/// residual of the shared residuals on the pyramid Lemke solves.
+fn lemke_certified(problem: &ConstraintProblem) -> (DVector<f64>, f64, usize) {
+    let mut solver = LemkeSolver::default();
+    let mut lambda = DVector::zeros(problem.rows());
+    let info = solver.solve(problem, &mut lambda).unwrap_or_else(|e| panic!("lemke: {e}"));
+    let mut pyramid = problem.clone();
+    pyramid.friction = FrictionModel::Pyramid { facets: solver.facets };
+    let r = solver.certify(&residuals(&pyramid, &lambda, &mut DVector::zeros(0)));
+    (lambda, r, info.iterations)
+}
+
+#[test]
+fn a_heavy_box_on_a_light_one_is_solved_at_every_time_step() {
+    // Mass ratio 1:1000: M's entries for the two boxes differ by three orders of magnitude.
+    for dt in [1.0 / 60.0, 1.0 / 240.0, 1.0 / 1000.0] {
+        let mut w = world(dt, SolverKind::Clarabel);
+        add_box(&mut w, "light", 1.0, 0.05, 0.0);
+        add_box(&mut w, "heavy", 1000.0, 0.15, 0.0);
+        let problem = last_problem(&mut w, 5);
+        assert_eq!(problem.contacts.len(), 8, "dt {dt}: four corners under each box");
+        let (lambda, r, pivots) = lemke_certified(&problem);
+        assert!(r <= 1e-8, "dt {dt}: certified residual {r:e} m/s");
+        // The ground carries both boxes: Σ λ_n = (1000 + 1) kg · g · dt, to the step's
+        // settling (a few µm of penetration recovered per step at most).
+        let ground: f64 = problem.contacts.iter().map(|c| lambda[c.normal]).sum();
+        eprintln!("heavy on light, dt {dt}: residual {r:.1e} m/s, {pivots} pivots, Σλ_n {ground:.4} N·s");
+    }
+}
+
+#[test]
+fn a_400_variable_stack_lcp_is_solved_and_certified() {
+    // Ten boxes, each turned by 0.1 rad against the one below, at dt = 1/60 s: 40 contacts,
+    // whose cone Lemke approximates by 8 facets — 10 LCP variables per contact.
+    let mut w = world(1.0 / 60.0, SolverKind::Clarabel);
+    for k in 0..10 {
+        add_box(&mut w, &format!("box{k}"), 1.0, 0.05 + 0.1 * k as f64 - 1e-4, 0.1 * k as f64);
+    }
+    let problem = last_problem(&mut w, 30);
+    assert_eq!(problem.contacts.len(), 40);
+    assert_eq!(lcp_of(&problem, 8).q.len(), 400);
+    let (lambda, r, pivots) = lemke_certified(&problem);
+    assert!(r <= 1e-8, "certified residual {r:e} m/s after {pivots} pivots");
+    // The stack rests: the ground carries ten boxes, Σ λ_n (ground) = 10 kg · g · dt within the
+    // settling of one step.
+    let total: f64 = problem.contacts.iter().map(|c| lambda[c.normal]).sum();
+    eprintln!("stack of 10: residual {r:.1e} m/s, {pivots} pivots, Σλ_n {total:.4} N·s");
+}
+
+#[test]
+fn every_corpus_problem_is_solved_and_certified() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/problems");
+    let mut solved = 0;
+    for entry in std::fs::read_dir(&root).unwrap() {
+        let dir = entry.unwrap().path();
+        if !dir.join(PROBLEM_FILE).is_file() {
+            continue;
+        }
+        let problem = read_problem(&dir).unwrap();
+        let mut solver = LemkeSolver::default();
+        let mut lambda = DVector::zeros(problem.rows());
+        solver.solve(&problem, &mut lambda).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+        let certifying = CorpusSolver::Lemke.certifying_problem(&problem);
+        let r = solver.certify(&residuals(&certifying, &lambda, &mut DVector::zeros(0)));
+        assert!(r <= 1e-8, "{}: certified residual {r:e} m/s", dir.display());
+        solved += 1;
+    }
+    assert!(solved >= 18, "{solved} problems in {}", root.display());
+}
+
+#[test]
+fn every_step_of_the_ten_box_stack_is_solved_at_every_time_step() {
+    // The hard case `stack10` (ten 0.1 m boxes stacked on the ground) with Lemke alone and no
+    // answer accepted above the world's tolerance (1e-8 m/s): a step whose LCP Lemke does not
+    // solve is an error. One simulated second at each time step of the stability table.
+    for dt in TIME_STEPS {
+        let mut o = options(&Setting::new(SolverKind::Lemke { facets: 8 }, dt));
+        o.accept_last = false;
+        let mut w = World::new(o);
+        w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+        for k in 0..10 {
+            add_box(&mut w, &format!("box{k}"), 1.0, 0.05 + 0.1 * k as f64, 0.0);
+        }
+        let steps = (1.0 / dt).round() as usize;
+        let mut most_contacts = 0;
+        for step in 0..steps {
+            let stats = w.step().unwrap_or_else(|e| panic!("dt {dt}, step {step}: {e}"));
+            assert!(stats.fallbacks.is_empty(), "dt {dt}, step {step}: {:?}", stats.fallbacks);
+            assert!(
+                stats.contacts == 0 || stats.residual <= 1e-8,
+                "dt {dt}, step {step}: {}",
+                stats.residual
+            );
+            most_contacts = most_contacts.max(stats.contacts);
+        }
+        assert!(most_contacts >= 40, "dt {dt}: {most_contacts} contacts at most");
+    }
+}
+
+#[test]
+fn lemke_and_clarabel_agree_on_frictionless_contacts() {
+    // Without friction the LCP is the optimality condition of a convex QP, whose row velocities
+    // w = (A + R) λ + b are unique: Lemke's and clarabel's must agree.
+    let mut w = world(1.0 / 240.0, SolverKind::Clarabel);
+    for k in 0..4 {
+        add_box(
+            &mut w,
+            &format!("box{k}"),
+            [1.0, 1000.0, 3.0, 0.5][k],
+            0.05 + 0.1 * k as f64 - 1e-4,
+            0.3 * k as f64,
+        );
+    }
+    let mut problem = last_problem(&mut w, 10);
+    for block in &mut problem.contacts {
+        block.mu = 0.0;
+        block.mu2 = 0.0;
+    }
+    assert!(problem.contacts.len() >= 16);
+    let velocities = |lambda: &DVector<f64>| {
+        let mut a = problem.delassus_dense().into_owned();
+        for i in 0..problem.rows() {
+            a[(i, i)] += problem.regularization[i];
+        }
+        a * lambda + &problem.bias
+    };
+    let mut lambda_lemke = DVector::zeros(problem.rows());
+    LemkeSolver::default().solve(&problem, &mut lambda_lemke).unwrap();
+    let mut lambda_clarabel = DVector::zeros(problem.rows());
+    ClarabelSolver::default().solve(&problem, &mut lambda_clarabel).unwrap();
+    let (wl, wc) = (velocities(&lambda_lemke), velocities(&lambda_clarabel));
+    let scale = problem.bias.amax().max(1e-3);
+    let difference = (&wl - &wc).amax();
+    assert!(difference <= 1e-6 * scale, "w differs by {difference:e} (scale {scale:e})");
+}
