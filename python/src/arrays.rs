@@ -5,7 +5,7 @@
 use gelenk::math::{Transform, Vec3};
 use nalgebra::{DMatrix, DVector};
 use numpy::{
-    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
+    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2,
     PyReadonlyArray3, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -32,14 +32,6 @@ fn wrong_array(obj: &Bound<'_, PyAny>, name: &str, ndim: usize) -> PyErr {
         "{name}: expected a numpy array of float64, got {type_name} (convert it with \
          numpy.asarray({name}, dtype=numpy.float64))"
     ))
-}
-
-/// A read-only view of a 1-D float64 array.
-pub fn array1<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray1<'py, f64>> {
-    match obj.cast::<PyArray1<f64>>() {
-        Ok(a) => Ok(a.try_readonly().map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?),
-        Err(_) => Err(wrong_array(obj, name, 1)),
-    }
 }
 
 /// A read-only view of a 2-D float64 array.

@@ -6,7 +6,7 @@
 use crate::arrays::{array2, array3};
 use crate::errors::{self, StepError};
 use crate::model::PyModel;
-use crate::sim::{Layout, Recipe, Sim};
+use crate::sim::{skip_meshes, Layout, Recipe, Sim};
 use crate::world::PyWorld;
 use numpy::{PyArray1, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -54,7 +54,7 @@ fn template(scene: &Bound<'_, PyAny>) -> PyResult<(Sim, Layout)> {
     }
     if let Ok(model) = scene.cast::<PyModel>() {
         let model = model.get().model.clone();
-        let recipe = Arc::new(Recipe::Model { model, options: Default::default(), ground: false });
+        let recipe = Arc::new(Recipe::Model { model, options: Default::default(), ground: false, meshes: skip_meshes() });
         let world = recipe.build().map_err(PyValueError::new_err)?;
         let sim = Sim::World { world: Box::new(world), recipe };
         let layout = sim.layout();
@@ -95,7 +95,8 @@ fn run_one(
 }
 
 /// Rolls out B copies of `scene` (a `World`, rebuilt at its initial state as loaded, or a
-/// `Model` alone in a world without ground) from `initial_states` (B × nstate, each a state
+/// `Model` alone in a world without ground, its collision meshes that cannot be found left
+/// out) from `initial_states` (B × nstate, each a state
 /// `[qpos, qvel]` as `World.get_state` gives) for `steps` steps, applying the joint forces
 /// `controls[b, t]` (B × T × nv, N·m or N; None: the scene's own forces) before step t, on
 /// `threads` threads (None: one per core) with the GIL released. Returns the states after each

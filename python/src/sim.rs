@@ -17,8 +17,8 @@ pub enum Recipe {
     /// An MJCF scene, as [`MjcfScene::into_world`] with its own options.
     Mjcf(MjcfScene),
     /// One model as the world's only multibody, at its neutral configuration, optionally on the
-    /// ground plane z = 0.
-    Model { model: Model, options: WorldOptions, ground: bool },
+    /// ground plane z = 0; `meshes` says where collision meshes are and what a missing one does.
+    Model { model: Model, options: WorldOptions, ground: bool, meshes: MeshOptions },
     /// A built-in scene of [`gelenk::scenes::scene_world`].
     BuiltIn(String),
 }
@@ -31,7 +31,7 @@ impl Recipe {
                 let options = scene.world_options();
                 scene.clone().into_world(options).map_err(|e| e.to_string())
             }
-            Recipe::Model { model, options, ground } => {
+            Recipe::Model { model, options, ground, meshes } => {
                 let mut world = World::new(options.clone());
                 if *ground {
                     let plane = Shape::HalfSpace { normal: Vec3::z() };
@@ -41,7 +41,7 @@ impl Recipe {
                 }
                 let name = if model.name().is_empty() { "model" } else { model.name() };
                 world
-                    .add_multibody(name, model.clone(), &MeshOptions::default())
+                    .add_multibody(name, model.clone(), meshes)
                     .map_err(|e| e.to_string())?;
                 Ok(world)
             }
@@ -96,6 +96,14 @@ impl Sim {
         match self {
             Sim::Scene(scene) => &mut scene.world,
             Sim::World { world, .. } => world,
+        }
+    }
+
+    /// What was left out while loading (meshes skipped).
+    pub fn warnings(&self) -> Vec<String> {
+        match self {
+            Sim::Scene(scene) => scene.warnings.clone(),
+            Sim::World { world, .. } => world.collision().warnings().to_vec(),
         }
     }
 
@@ -200,4 +208,9 @@ pub fn check_coordinates(model: &Model, name: &str, q: &[f64], v: &[f64]) -> Res
         }
     }
     model.check_quaternions(q).map_err(|e| format!("multibody `{name}`: {e}"))
+}
+
+/// Mesh options that leave out collision meshes that cannot be found (with a warning).
+pub fn skip_meshes() -> MeshOptions {
+    MeshOptions { missing: gelenk::collision::MissingMeshPolicy::Skip, ..MeshOptions::default() }
 }

@@ -112,19 +112,30 @@ pub fn stats_dict<'py>(py: Python<'py>, stats: &gelenk::world::StepStats) -> PyR
 impl PyWorld {
     /// A world holding `model` as its only multibody, at the model's neutral configuration and
     /// at rest, with time step `dt` (s; default 0.002), gravity `gravity` (m/s²; default
-    /// (0, 0, −9.81)) and, if `ground`, the ground plane z = 0.
+    /// (0, 0, −9.81)) and, if `ground`, the ground plane z = 0. A collision mesh that cannot be
+    /// found is an error, or with `missing_meshes="skip"` left out (listed in `warnings`).
     #[new]
-    #[pyo3(signature = (model, dt=None, gravity=None, ground=false))]
+    #[pyo3(signature = (model, dt=None, gravity=None, ground=false, missing_meshes="error"))]
     fn new(
         model: &Bound<'_, PyModel>,
         dt: Option<f64>,
         gravity: Option<[f64; 3]>,
         ground: bool,
+        missing_meshes: &str,
     ) -> PyResult<Self> {
         let model = model.get().model.clone();
         let options = Self::options(dt, gravity)?;
+        let meshes = match missing_meshes {
+            "error" => gelenk::collision::MeshOptions::default(),
+            "skip" => crate::sim::skip_meshes(),
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "missing_meshes: expected \"error\" or \"skip\", got \"{other}\""
+                )))
+            }
+        };
         let name = model.name().to_string();
-        let recipe = Arc::new(Recipe::Model { model, options, ground });
+        let recipe = Arc::new(Recipe::Model { model, options, ground, meshes });
         let world = recipe.build().map_err(PyValueError::new_err)?;
         Ok(Self::wrap(Sim::World { world: Box::new(world), recipe }, name))
     }
@@ -167,6 +178,11 @@ impl PyWorld {
     #[getter]
     fn nstate(&self) -> usize {
         self.layout.nstate()
+    }
+    /// What was left out while loading (collision meshes skipped), one sentence each.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.lock().warnings()
     }
     /// Names of the multibodies, in order.
     #[getter]
