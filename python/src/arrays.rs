@@ -5,8 +5,8 @@
 use gelenk::math::{Transform, Vec3};
 use nalgebra::{DMatrix, DVector};
 use numpy::{
-    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2,
-    PyReadonlyArray3, PyUntypedArray, PyUntypedArrayMethods,
+    PyArray1, PyArray2, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -115,7 +115,7 @@ pub fn to_py2<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64
 
 /// A new 2-D array (C order) from its rows laid end to end, `cols` entries each.
 pub fn rows_to_py2(py: Python<'_>, flat: Vec<f64>, cols: usize) -> Bound<'_, PyArray2<f64>> {
-    let rows = if cols == 0 { 0 } else { flat.len() / cols };
+    let rows = flat.len().checked_div(cols).unwrap_or(0);
     let array = PyArray1::from_vec(py, flat);
     array.reshape([rows, cols]).expect("rows × cols entries")
 }

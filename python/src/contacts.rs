@@ -38,7 +38,7 @@ pub fn contacts_dict<'py>(py: Python<'py>, world: &World) -> PyResult<Bound<'py,
     }
     let colliders = world.collision().colliders();
     let flat = |f: &dyn Fn(&gelenk::collision::Contact) -> [f64; 3]| {
-        rows_to_py2(py, contacts.iter().flat_map(|c| f(c)).collect(), 3)
+        rows_to_py2(py, contacts.iter().flat_map(f).collect(), 3)
     };
     let d = PyDict::new(py);
     d.set_item("point_a", flat(&|c| c.point_a.into()))?;
@@ -49,8 +49,8 @@ pub fn contacts_dict<'py>(py: Python<'py>, world: &World) -> PyResult<Bound<'py,
     d.set_item("distance", PyArray1::from_vec(py, distance))?;
     d.set_item("depth", PyArray1::from_vec(py, depth))?;
     d.set_item("impulse", rows_to_py2(py, impulse, 3))?;
-    let (a, b): (Vec<(i64, i64)>, Vec<(i64, i64)>) =
-        contacts.iter().map(|c| (attachment(c.body_a), attachment(c.body_b))).unzip();
+    let a: Vec<(i64, i64)> = contacts.iter().map(|c| attachment(c.body_a)).collect();
+    let b: Vec<(i64, i64)> = contacts.iter().map(|c| attachment(c.body_b)).collect();
     d.set_item("multibody_a", PyArray1::from_vec(py, a.iter().map(|x| x.0).collect()))?;
     d.set_item("body_a", PyArray1::from_vec(py, a.iter().map(|x| x.1).collect()))?;
     d.set_item("multibody_b", PyArray1::from_vec(py, b.iter().map(|x| x.0).collect()))?;

@@ -54,7 +54,12 @@ fn template(scene: &Bound<'_, PyAny>) -> PyResult<(Sim, Layout)> {
     }
     if let Ok(model) = scene.cast::<PyModel>() {
         let model = model.get().model.clone();
-        let recipe = Arc::new(Recipe::Model { model, options: Default::default(), ground: false, meshes: skip_meshes() });
+        let recipe = Arc::new(Recipe::Model {
+            model,
+            options: Default::default(),
+            ground: false,
+            meshes: skip_meshes(),
+        });
         let world = recipe.build().map_err(PyValueError::new_err)?;
         let sim = Sim::World { world: Box::new(world), recipe };
         let layout = sim.layout();

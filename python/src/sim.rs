@@ -40,9 +40,7 @@ impl Recipe {
                         .map_err(|e| e.to_string())?;
                 }
                 let name = if model.name().is_empty() { "model" } else { model.name() };
-                world
-                    .add_multibody(name, model.clone(), meshes)
-                    .map_err(|e| e.to_string())?;
+                world.add_multibody(name, model.clone(), meshes).map_err(|e| e.to_string())?;
                 Ok(world)
             }
             Recipe::BuiltIn(name) => gelenk::scenes::scene_world(name).map_err(|e| e.to_string()),
