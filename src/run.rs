@@ -25,6 +25,9 @@ pub struct RunOptions {
     pub solvers: Option<Vec<SolverKind>>,
     /// Record one row every this many steps instead of `[record] every`; 0 records nothing.
     pub record_every: Option<usize>,
+    /// Relative softness of the rows instead of `[world] softness`
+    /// ([`crate::world::WorldOptions::softness`]).
+    pub softness: Option<f64>,
 }
 
 /// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
@@ -231,6 +234,14 @@ pub fn run(
             ));
         }
         scene.rebuild_with(options.dt, options.solvers.clone())?;
+    }
+    if let Some(softness) = options.softness {
+        if !(softness.is_finite() && softness >= 0.0) {
+            return Err(SceneError::Options(format!(
+                "softness must be finite and non-negative, got {softness}"
+            )));
+        }
+        scene.world.set_softness(softness);
     }
     let duration = options.duration.unwrap_or(scene.duration);
     if !(duration.is_finite() && duration >= 0.0) {

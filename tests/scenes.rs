@@ -97,9 +97,9 @@ fn bad_values_are_errors_with_their_line() {
     assert!(message.contains("line 6") && message.contains("body[0].mass"), "{message}");
     assert!(message.contains("positive"), "{message}");
     // Unknown solver name, second in the list.
-    let message = load_error("[world]\ndt = 0.001\nsolver = [\"pgs\", \"newton\"]\n");
+    let message = load_error("[world]\ndt = 0.001\nsolver = [\"pgs\", \"simplex\"]\n");
     assert!(message.contains("line 3") && message.contains("world.solver"), "{message}");
-    assert!(message.contains("newton"), "{message}");
+    assert!(message.contains("simplex"), "{message}");
     // Unknown shape, friction and integrator.
     let message = load_error("[[body]]\nshape = \"cone\"\n");
     assert!(message.contains("line 2") && message.contains("cone"), "{message}");
@@ -459,6 +459,7 @@ fn run_options_override_dt_and_solver_before_the_first_step() {
         dt: Some(0.002),
         solvers: Some(scene::parse_solvers("lemke").unwrap()),
         record_every: Some(0),
+        softness: None,
     };
     let summary = scene::run(&mut s, &options, |_| {}).unwrap();
     assert_eq!(summary.steps, 300);
@@ -473,7 +474,8 @@ fn run_options_override_dt_and_solver_before_the_first_step() {
     assert_eq!(s.world.time(), 0.0);
     assert!(scene::run(&mut s, &options, |_| {}).is_ok());
     assert!(scene::parse_solvers("pgs20, clarabel").unwrap().len() == 2);
-    assert!(scene::parse_solvers("newton").is_err());
+    assert!(scene::parse_solvers("simplex").is_err());
+    assert_eq!(scene::parse_solvers("newton").unwrap(), vec![SolverKind::Newton]);
     // A duration of 1e300 s would step for ever: refused with the number of steps.
     let options = RunOptions { duration: Some(1e300), ..RunOptions::default() };
     match scene::run(&mut s, &options, |_| {}) {
@@ -620,5 +622,22 @@ fn the_mass_matrix_reuse_key_sets_the_world_option() {
             message.contains("line 2") && message.contains("world.mass_matrix_reuse"),
             "{bad}: {message}"
         );
+    }
+}
+
+/// `RunOptions::softness` sets the world's relative softness; a negative or non-finite one is a
+/// typed error before any step.
+#[test]
+fn run_options_set_the_softness() {
+    let mut s = scene::load_file(models_dir().join("ball_bounce.toml")).unwrap();
+    let options = RunOptions { duration: Some(0.1), softness: Some(0.01), ..RunOptions::default() };
+    scene::run(&mut s, &options, |_| {}).unwrap();
+    assert_eq!(s.world.options().softness, 0.01);
+    for bad in [-0.1, f64::NAN, f64::INFINITY] {
+        let mut s = scene::load_file(models_dir().join("ball_bounce.toml")).unwrap();
+        let options = RunOptions { softness: Some(bad), ..RunOptions::default() };
+        let error = scene::run(&mut s, &options, |_| {}).unwrap_err().to_string();
+        assert!(error.contains("softness"), "{error}");
+        assert_eq!(s.world.time(), 0.0);
     }
 }

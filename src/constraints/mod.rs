@@ -449,6 +449,31 @@ impl ConstraintProblem {
         s.extend_from_slice(sum);
     }
 
+    /// Adds a compliance relative to each row's effective mass: `R_ii += relative · A_ii` for
+    /// unilateral and bounded rows, and for a contact's two friction rows the normal's
+    /// `relative · A_nn` (so that a contact's three rows are equally soft); bilateral rows
+    /// (loop closures) stay as they are. See [`crate::world::WorldOptions::softness`].
+    pub fn soften(&mut self, relative: f64) {
+        for i in 0..self.rows() {
+            let extra = match self.laws[i] {
+                RowLaw::Bilateral => continue,
+                RowLaw::Friction { contact } => {
+                    relative * self.diagonal_of_row(self.contacts[contact].normal)
+                }
+                RowLaw::Unilateral | RowLaw::Bounded { .. } => relative * self.diagonal_of_row(i),
+            };
+            self.regularization[i] += extra;
+        }
+    }
+
+    /// A_ii as kept by assembly, or from A or W.
+    fn diagonal_of_row(&self, i: usize) -> f64 {
+        match self.kept_diagonal() {
+            Some(a) => a[i],
+            None => self.delassus_entry(i, i),
+        }
+    }
+
     /// A problem given directly by its matrix and vectors (no Jacobian): for tests, imported
     /// problems and solver benchmarks. `jacobian` and `minv_jt` are left empty.
     pub fn from_parts(

@@ -8,6 +8,7 @@ mod chain;
 mod conic;
 mod friction;
 mod lemke;
+mod newton;
 mod pgs;
 pub mod residuals;
 mod subspace;
@@ -17,6 +18,7 @@ pub use crate::error::SolverError;
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, ClarabelSolver, ConeProgram};
 pub use lemke::{lcp_of, lemke, Lcp, LemkeOptions, LemkeSolver};
+pub use newton::NewtonSolver;
 pub use pgs::{PgsSolver, PgsWorkspace};
 pub use residuals::{residuals, QpResiduals, Residuals};
 

@@ -249,6 +249,12 @@ impl World {
         Ok(())
     }
 
+    /// Sets the relative softness of the rows ([`WorldOptions::softness`]) from the next step
+    /// on.
+    pub fn set_softness(&mut self, relative: f64) {
+        self.options.softness = relative;
+    }
+
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
     pub fn set_integrator(&mut self, integrator: IntegratorKind) {
         self.options.integrator = integrator;
@@ -592,6 +598,9 @@ impl World {
         let kept = self.rows.kept_contact_rows();
         let reuse = self.options.mass_matrix_reuse;
         self.solve.build(&self.rows.builder, kept, &self.bodies, &self.dofs, reuse);
+        if self.options.softness > 0.0 {
+            self.solve.problem.soften(self.options.softness);
+        }
     }
 
     /// Stage 6: the impulses of the built problem and the velocity after them (see

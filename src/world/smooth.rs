@@ -1,8 +1,8 @@
 //! Smooth steps: the integrator choice of [`super::WorldOptions::integrator`] for the steps
 //! without inequality rows.
 //!
-//! The world's contact step is velocity-level semi-implicit Euler (issue 6: "the integrator
-//! choice applies to the smooth part and to scenes without contact"). A step is *smooth* when
+//! The world's contact step is velocity-level semi-implicit Euler; the integrator choice applies
+//! to the smooth part and to scenes without contact. A step is *smooth* when
 //! it has no contact (not even a speculative one within the contact margin), no joint limit
 //! within its margin, no motor, servo, pose servo or joint friction on any multibody, and no
 //! loop closure between two different multibodies; every awake multibody is then advanced by

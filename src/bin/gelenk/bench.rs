@@ -31,9 +31,12 @@ pub enum BenchCommand {
     World {
         /// Scene file (.toml) or MJCF file (.xml).
         scene: PathBuf,
-        /// Solver chain instead of the scene's, e.g. `pgs50`, `pgs100,clarabel`.
+        /// Solver chain instead of the scene's, e.g. `pgs50`, `pgs100,clarabel`, `newton`.
         #[arg(long)]
         solver: Option<String>,
+        /// Relative softness of the rows instead of the scene's (R_ii = s A_ii; 0: hard).
+        #[arg(long)]
+        softness: Option<f64>,
         /// Steps timed (at least 1; one episode from the initial state, after `--settle`).
         #[arg(long, default_value_t = 2500, value_parser = at_least_one)]
         steps: usize,
@@ -62,15 +65,17 @@ pub fn run(command: BenchCommand) -> Result<(), String> {
         BenchCommand::Dynamics { model, floating, json, rounds } => {
             bench_dynamics(&model, floating, json, rounds)
         }
-        BenchCommand::World { scene, solver, steps, settle, sleep, controls, rounds, json } => bench_world(
-            &scene,
-            solver.as_deref(),
-            steps,
-            settle,
-            BenchOptions { sleep, controls },
-            rounds,
-            json,
-        ),
+        BenchCommand::World { scene, solver, softness, steps, settle, sleep, controls, rounds, json } => {
+            bench_world(
+                &scene,
+                solver.as_deref(),
+                steps,
+                settle,
+                BenchOptions { sleep, controls, softness },
+                rounds,
+                json,
+            )
+        }
     }
 }
 
@@ -180,10 +185,11 @@ fn is_mjcf(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml"))
 }
 
-/// Switches of `bench world`: sleeping kept on, vehicle commands applied.
+/// Switches of `bench world`: sleeping kept on, vehicle commands applied, the rows' softness.
 struct BenchOptions {
     sleep: bool,
     controls: bool,
+    softness: Option<f64>,
 }
 
 fn bench_world(
@@ -191,7 +197,7 @@ fn bench_world(
     solver: Option<&str>,
     steps: usize,
     settle: usize,
-    BenchOptions { sleep, controls }: BenchOptions,
+    BenchOptions { sleep, controls, softness }: BenchOptions,
     rounds: usize,
     as_json: bool,
 ) -> Result<(), String> {
@@ -206,6 +212,12 @@ fn bench_world(
         let world = target.world();
         if let Some(s) = &solvers {
             world.set_solvers(s.clone());
+        }
+        if let Some(s) = softness {
+            if !(s.is_finite() && s >= 0.0) {
+                return Err(format!("--softness must be finite and non-negative, got {s}"));
+            }
+            world.set_softness(s);
         }
         if !sleep {
             world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..world.options().sleep });

@@ -16,9 +16,13 @@ pub struct SimulateArgs {
     /// Time step (s) instead of the scene's.
     #[arg(long)]
     dt: Option<f64>,
-    /// Solver chain instead of the scene's, e.g. `pgs50`, `lemke,clarabel`.
+    /// Solver chain instead of the scene's, e.g. `pgs50`, `lemke,clarabel`, `newton`.
     #[arg(long)]
     solver: Option<String>,
+    /// Relative softness of contacts, limits, joint friction and motors instead of the
+    /// scene's (R_ii = s A_ii; 0: hard).
+    #[arg(long)]
+    softness: Option<f64>,
     /// Write the recorded states to FILE.csv or FILE.json.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -49,7 +53,13 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
     let solvers =
         args.solver.as_deref().map(scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
     let record_every = if args.out.is_some() { None } else { Some(0) };
-    let options = scene::RunOptions { duration: args.duration, dt: args.dt, solvers, record_every };
+    let options = scene::RunOptions {
+        duration: args.duration,
+        dt: args.dt,
+        solvers,
+        record_every,
+        softness: args.softness,
+    };
     let terminal = std::io::stderr().is_terminal();
     let mut shown = -1i64;
     let summary = scene::run(&mut loaded, &options, |fraction| {

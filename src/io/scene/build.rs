@@ -56,6 +56,7 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
         friction: w.friction.map_or(defaults.friction, |f| f.0),
         solvers: w.solver.clone().map_or(defaults.solvers.clone(), |s| s.0),
         tolerance: w.tolerance.map_or(defaults.tolerance, |x| x.0),
+        softness: w.softness.map_or(defaults.softness, |x| x.0),
         accept_last: w.accept_last.unwrap_or(defaults.accept_last),
         contact: doc.contact.apply(ContactParameters::default()),
         ..defaults

@@ -78,8 +78,9 @@
 //! | `[world]` | `dt` | time step, s (0.002) |
 //! | | `duration` | simulated time of [`run`], s (1) |
 //! | | `gravity` | `[x, y, z]`, m/s² (`[0, 0, -9.81]`) |
-//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
+//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"newton"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
+//! | | `softness` | relative compliance of contacts, limits, joint friction and motors, `R_ii = s A_ii` ([`WorldOptions::softness`](crate::world::WorldOptions::softness); 0: hard) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
 //! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"pyramid:N"` means the same) (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
@@ -428,7 +429,9 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
         .map(str::trim)
         .map(|name| {
             SolverKind::parse(name).ok_or_else(|| {
-                format!("unknown solver `{name}` (known: lemke, clarabel, pgs, pgsN with N >= 1 sweeps)")
+                format!(
+                    "unknown solver `{name}` (known: lemke, clarabel, newton, pgs, pgsN with N >= 1 sweeps)"
+                )
             })
         })
         .collect::<Result<Vec<_>, _>>()?;

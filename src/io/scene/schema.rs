@@ -82,6 +82,7 @@ pub(super) struct WorldSection {
     pub(super) gravity: Option<V3>,
     pub(super) solver: Option<SolverList>,
     pub(super) tolerance: Option<Positive>,
+    pub(super) softness: Option<NonNegative>,
     pub(super) accept_last: Option<bool>,
     pub(super) friction: Option<FrictionName>,
     pub(super) margin: Option<NonNegative>,

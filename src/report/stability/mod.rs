@@ -45,6 +45,7 @@ impl Setting {
         match self.solver {
             SolverKind::Lemke { .. } => "lemke".into(),
             SolverKind::Clarabel => "clarabel".into(),
+            SolverKind::Newton => "newton".into(),
             SolverKind::Pgs { iterations, .. } => format!("pgs{iterations}"),
         }
     }

@@ -16,7 +16,11 @@ use toml::Spanned;
 
 impl Builder<'_> {
     /// Adds the model(s) of a `[[urdf]]` entry; returns the URDF loader's warnings.
-    pub(super) fn urdf(&mut self, world: &mut World, u: &Spanned<UrdfSection>) -> Result<Vec<String>, SceneError> {
+    pub(super) fn urdf(
+        &mut self,
+        world: &mut World,
+        u: &Spanned<UrdfSection>,
+    ) -> Result<Vec<String>, SceneError> {
         let span = u.span();
         let u = u.get_ref();
         let err = |message: String| self.src.invalid(span.clone(), message);

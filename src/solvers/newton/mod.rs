@@ -1,0 +1,575 @@
+//! A Newton method on the primal (velocity) form of the convex contact problem, with a sparse
+//! Cholesky factorization: the solver for problems where projected Gauss–Seidel crawls (piles of
+//! articulated bodies, where the rows of one multibody are strongly coupled).
+//!
+//! **Formulation.** With A = W Wᵀ, the convex (Anitescu) problem regularised by a diagonal
+//! `E ≥ R` (`E = R` on rows already as soft as [`NewtonSolver::epsilon`] of their diagonal; the
+//! others topped up by a proximal weight `P = E − R`) and shifted by a proximal centre λ̄,
+//!
+//! `min_{λ ∈ C} ½ λᵀ (A + E) λ + cᵀ λ`,  `c = b − P λ̄`,
+//!
+//! is the dual of the unconstrained, convex, once-differentiable problem in x (Todorov,
+//! "Convex and analytically-invertible dynamics", 2014; MuJoCo's primal Newton solver):
+//!
+//! `min_x ½ ‖x‖² + Σ_g φ_g(W_g x + c_g)`,  `∇ = x − Wᵀ λ(x)`,  `∇² = I + Wᵀ G W`,
+//!
+//! where `λ_g(y) = Π_{C_g}(−E⁻¹ y)` is the projection in the E-metric onto each group's set
+//! (a row's bounds, a contact's friction cone: `laws.rs`) and `G = −∂λ/∂y`. x is the velocity
+//! change in the coordinates where M is the identity; at the optimum `x = Wᵀ λ`. Each Newton
+//! step factors H (`hessian.rs`, sparse over the multibodies) and takes the exact minimum along
+//! the direction (a root of the directional derivative, O(rows) per trial since `W d` is formed
+//! once).
+//!
+//! **Outer rounds** (the proximal point method, Rockafellar 1976) make the answer exact on the
+//! hard rows (`P > 0`): λ̄ is moved to the round's answer and the problem solved again, so
+//! that `P (λ − λ̄) → 0`; the rounds are a fixed-point iteration, accelerated by Anderson's
+//! method (`anderson.rs`); rounds that stall (redundant hard rows) lower the weight tenfold. A
+//! problem whose rows are all soft (R ≥ ε A_ii, see
+//! [`crate::world::WorldOptions::softness`]) is solved in one round.
+//!
+//! The answer is certified by the shared residuals of the convex relaxation
+//! ([`Residuals::convex`], as clarabel's): a sliding contact satisfies it with the relaxation's
+//! separating normal velocity `w_n = μ ‖w_t‖`. Cone friction only; a pyramid problem is refused.
+
+mod anderson;
+mod hessian;
+mod laws;
+mod rows;
+
+use super::residuals::{contact_of_normal, residuals_at_velocities};
+use super::{check_problem, ConstraintSolver, Residuals, SolveInfo, SolverError};
+use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw, RowSparsity};
+use hessian::Hessian;
+use laws::{project, Group, Zone};
+use nalgebra::DVector;
+
+/// Share of a chain's certified tolerance the solver aims for, so that the next step's warm
+/// start begins well within it.
+const CERTIFIED_SHARE: f64 = 0.1;
+
+/// Smallest proximal weight the rounds lower [`NewtonSolver::epsilon`] to when they stall.
+const MIN_EPSILON: f64 = 1e-8;
+
+/// Rounds of history kept by the Anderson acceleration.
+const ANDERSON_DEPTH: usize = 5;
+
+/// The Newton solver and its settings.
+pub struct NewtonSolver {
+    /// Most Newton iterations in one solve (all rounds together).
+    pub max_iterations: usize,
+    /// Most outer (proximal) rounds.
+    pub max_rounds: usize,
+    /// Least regularisation of a row relative to its diagonal A_ii + R_ii: rows softer than this
+    /// are solved as they are, harder ones through proximal rounds. Small values make the
+    /// problem nearly nonsmooth (more Newton iterations); large ones need more rounds.
+    pub epsilon: f64,
+    /// Residual (m/s) at which a round's answer ends the solve; `None`: a tenth of the chain's
+    /// tolerance, or 1e-9 outside a chain.
+    pub residual_goal: Option<f64>,
+    /// Start from the impulses passed in (else from zero).
+    pub warm_start: bool,
+    /// W of a problem given by its dense A.
+    own_w: RowSparsity,
+    workspace: Workspace,
+}
+
+impl Default for NewtonSolver {
+    fn default() -> Self {
+        Self {
+            max_iterations: 100,
+            max_rounds: 40,
+            epsilon: 1e-2,
+            residual_goal: None,
+            warm_start: true,
+            own_w: RowSparsity::default(),
+            workspace: Workspace::default(),
+        }
+    }
+}
+
+impl std::fmt::Debug for NewtonSolver {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NewtonSolver")
+            .field("max_iterations", &self.max_iterations)
+            .field("max_rounds", &self.max_rounds)
+            .field("epsilon", &self.epsilon)
+            .field("residual_goal", &self.residual_goal)
+            .field("warm_start", &self.warm_start)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Buffers reused between solves.
+#[derive(Default)]
+struct Workspace {
+    groups: Vec<Group>,
+    /// Per group: its columns (increasing) in `columns[column_start[g]..column_start[g + 1]]`
+    /// and its rows of W on them, dense, row after row, from `local_start[g]`.
+    column_start: Vec<usize>,
+    columns: Vec<usize>,
+    local_start: Vec<usize>,
+    local_w: Vec<f64>,
+    /// Coupled block pairs.
+    pairs: Vec<(usize, usize)>,
+    /// Per group, its Hessian block (row-major, up to 3 × 3) and zone at the current x.
+    curvature: Vec<[f64; 9]>,
+    zones: Vec<Zone>,
+    /// Per row: diagonal d = A_ii + R_ii, metric E, 1/√E, proximal weight P = E − R.
+    diagonal: Vec<f64>,
+    e: Vec<f64>,
+    inv_sqrt_e: Vec<f64>,
+    prox: Vec<f64>,
+    /// Per row: the round's bias c, y = W x + c, y at the line search's start, W d, λ(x), the
+    /// proximal centre, the best answer, and zeros (the bias of W d).
+    c: Vec<f64>,
+    y: Vec<f64>,
+    y0: Vec<f64>,
+    u: Vec<f64>,
+    lambda: Vec<f64>,
+    centre: Vec<f64>,
+    best: Vec<f64>,
+    zeros: Vec<f64>,
+    /// Velocities w = (A + R) λ + b of a certified answer, and that answer as a vector.
+    w: DVector<f64>,
+    lambda_vec: DVector<f64>,
+    /// Per column: x, the gradient, the direction, Wᵀλ.
+    x: Vec<f64>,
+    gradient: Vec<f64>,
+    direction: Vec<f64>,
+    sum: Vec<f64>,
+    /// Dense local products G W_g and H_g.
+    gw: Vec<f64>,
+    local_h: Vec<f64>,
+    hessian: Hessian,
+    anderson: anderson::Anderson,
+}
+
+impl NewtonSolver {
+    /// Symbolic analyses of the Hessian's pattern done so far (a new one each time the set of
+    /// coupled multibodies changes).
+    pub fn pattern_analyses(&self) -> usize {
+        self.workspace.hessian.analyses
+    }
+}
+
+impl ConstraintSolver for NewtonSolver {
+    fn name(&self) -> &'static str {
+        "newton"
+    }
+
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError> {
+        check_problem(problem)?;
+        let n = problem.rows();
+        if lambda.len() != n || !self.warm_start {
+            *lambda = DVector::zeros(n);
+        }
+        if n == 0 {
+            return Ok(SolveInfo::default());
+        }
+        if let FrictionModel::Pyramid { .. } = problem.friction {
+            if problem.contacts.iter().any(|c| c.mu > 0.0 || c.mu2 > 0.0) {
+                return Err(SolverError::InvalidProblem("newton solves cone friction, not a pyramid".into()));
+            }
+        }
+        let goal = self.residual_goal.unwrap_or(1e-9);
+        let own_rows = !rows::has_rows(problem);
+        if own_rows {
+            rows::dense_factor(problem, &mut self.own_w)?;
+        }
+        let w_rows: &RowSparsity = if own_rows { &self.own_w } else { &problem.sparsity };
+        let ws = &mut self.workspace;
+        setup_groups(problem, w_rows, ws)?;
+        set_metric(problem, ws, self.epsilon);
+        ws.hessian.prepare(&w_rows.blocks, &ws.pairs);
+        for v in [
+            &mut ws.c,
+            &mut ws.y,
+            &mut ws.y0,
+            &mut ws.u,
+            &mut ws.lambda,
+            &mut ws.centre,
+            &mut ws.best,
+            &mut ws.zeros,
+        ] {
+            v.clear();
+            v.resize(n, 0.0);
+        }
+        let nv = w_rows.nv;
+        for v in [&mut ws.x, &mut ws.gradient, &mut ws.direction, &mut ws.sum] {
+            v.clear();
+            v.resize(nv, 0.0);
+        }
+        if ws.w.len() != n {
+            ws.w = DVector::zeros(n);
+            ws.lambda_vec = DVector::zeros(n);
+        }
+        // A warm start already within the goal is the answer.
+        let (residual, report) = certify(problem, w_rows, own_rows, ws, lambda.as_slice());
+        if residual <= goal {
+            return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
+        }
+        ws.centre.copy_from_slice(lambda.as_slice());
+        rows::transpose_product(w_rows, &ws.centre, &mut ws.x);
+        let hard = ws.prox.iter().any(|&p| p > 0.0);
+        ws.anderson.reset(n, ANDERSON_DEPTH);
+        let mut best = (f64::INFINITY, Residuals::default());
+        let mut best_is_last = false;
+        let mut iterations = 0;
+        let mut epsilon = self.epsilon;
+        let mut previous = f64::INFINITY;
+        for _ in 0..self.max_rounds {
+            for i in 0..n {
+                ws.c[i] = problem.bias[i] - ws.prox[i] * ws.centre[i];
+            }
+            iterations += newton(w_rows, ws, goal, self.max_iterations.saturating_sub(iterations))?;
+            let answer = std::mem::take(&mut ws.lambda);
+            let (residual, report) = certify(problem, w_rows, own_rows, ws, &answer);
+            ws.lambda = answer;
+            best_is_last = residual < best.0;
+            if best_is_last {
+                best = (residual, report);
+                ws.best.copy_from_slice(&ws.lambda);
+            }
+            if residual <= goal || !hard || iterations >= self.max_iterations {
+                break;
+            }
+            if residual > 0.5 * previous && epsilon > MIN_EPSILON {
+                // Slow rounds (redundant hard rows, whose proximal error shrinks at a rate
+                // near 1): a smaller weight, and a history for the new map.
+                epsilon = (0.1 * epsilon).max(MIN_EPSILON);
+                set_metric(problem, ws, epsilon);
+                ws.anderson.reset(n, ANDERSON_DEPTH);
+            }
+            previous = residual;
+            ws.anderson.next_centre(&mut ws.centre, &ws.lambda);
+        }
+        if !best_is_last {
+            // The problem keeps the Wᵀλ of the last answer certified: make it the best one's.
+            let answer = std::mem::take(&mut ws.best);
+            certify(problem, w_rows, own_rows, ws, &answer);
+            ws.best = answer;
+        }
+        lambda.as_mut_slice().copy_from_slice(&ws.best);
+        Ok(SolveInfo { iterations, note: None, residuals: Some(best.1) })
+    }
+
+    fn certify(&self, residuals: &Residuals) -> f64 {
+        residuals.convex()
+    }
+
+    fn set_certified_tolerance(&mut self, tolerance: f64) {
+        self.residual_goal = Some(CERTIFIED_SHARE * tolerance);
+    }
+}
+
+/// The groups of rows, their columns and local rows of W, the coupled block pairs, and each
+/// row's diagonal.
+fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace) -> Result<(), SolverError> {
+    let n = problem.rows();
+    ws.groups.clear();
+    for i in 0..n {
+        match problem.laws[i] {
+            RowLaw::Bilateral => {
+                ws.groups.push(Group::Row { row: i, lo: f64::NEG_INFINITY, hi: f64::INFINITY })
+            }
+            RowLaw::Bounded { lo, hi } => ws.groups.push(Group::Row { row: i, lo, hi }),
+            RowLaw::Friction { .. } => {}
+            RowLaw::Unilateral => match contact_of_normal(problem, i) {
+                None => ws.groups.push(Group::Row { row: i, lo: 0.0, hi: f64::INFINITY }),
+                Some(c) => {
+                    let contact = &problem.contacts[c];
+                    if contact.mu > 0.0 && contact.mu2 > 0.0 {
+                        ws.groups.push(Group::Cone { normal: i, slope: 0.0 });
+                    } else if contact.mu == 0.0 && contact.mu2 == 0.0 {
+                        ws.groups.push(Group::Row { row: i, lo: 0.0, hi: f64::INFINITY });
+                        ws.groups.push(Group::Row { row: i + 1, lo: 0.0, hi: 0.0 });
+                        ws.groups.push(Group::Row { row: i + 2, lo: 0.0, hi: 0.0 });
+                    } else {
+                        return Err(SolverError::InvalidProblem(format!(
+                            "newton: the cone of contact {c} needs friction along both tangents or neither (μ {}, μ₂ {})",
+                            contact.mu, contact.mu2
+                        )));
+                    }
+                }
+            },
+        }
+    }
+    let covered: usize = ws.groups.iter().map(|g| g.rows().1).sum();
+    if covered != n {
+        return Err(SolverError::InvalidProblem(format!(
+            "newton: {covered} of {n} rows belong to a law (friction rows outside a contact block)"
+        )));
+    }
+    ws.diagonal.clear();
+    let kept = problem.kept_diagonal();
+    for i in 0..n {
+        let a = match kept {
+            Some(a) => a[i],
+            None if w.row_norm2.len() == n => w.row_norm2[i],
+            None => problem.delassus_entry(i, i),
+        };
+        ws.diagonal.push(a + problem.regularization[i]);
+    }
+    ws.column_start.clear();
+    ws.columns.clear();
+    ws.local_start.clear();
+    ws.local_w.clear();
+    ws.pairs.clear();
+    ws.column_start.push(0);
+    for g in 0..ws.groups.len() {
+        let (first, count) = ws.groups[g].rows();
+        let start = ws.columns.len();
+        for i in first..first + count {
+            for (col, wi) in w.row_spans(i) {
+                ws.columns.extend(col..col + wi.len());
+            }
+            let blocks = w.row_blocks(i);
+            for (k, &a) in blocks.iter().enumerate() {
+                for &b in &blocks[k + 1..] {
+                    ws.pairs.push((a.min(b), a.max(b)));
+                }
+            }
+        }
+        ws.columns[start..].sort_unstable();
+        let mut write = start;
+        for read in start..ws.columns.len() {
+            if write == start || ws.columns[read] != ws.columns[write - 1] {
+                ws.columns[write] = ws.columns[read];
+                write += 1;
+            }
+        }
+        ws.columns.truncate(write);
+        ws.column_start.push(write);
+        let cols = write - start;
+        ws.local_start.push(ws.local_w.len());
+        let base = ws.local_w.len();
+        ws.local_w.resize(base + count * cols, 0.0);
+        for (r, i) in (first..first + count).enumerate() {
+            for (col, wi) in w.row_spans(i) {
+                // The run's columns are consecutive, so they are too among the group's.
+                let at = ws.columns[start..write].binary_search(&col).expect("a column of the group");
+                ws.local_w[base + r * cols + at..base + r * cols + at + wi.len()].copy_from_slice(wi);
+            }
+        }
+    }
+    ws.local_start.push(ws.local_w.len());
+    ws.pairs.sort_unstable();
+    ws.pairs.dedup();
+    ws.curvature.clear();
+    ws.curvature.resize(ws.groups.len(), [0.0; 9]);
+    ws.zones.clear();
+    ws.zones.resize(ws.groups.len(), Zone::Free);
+    Ok(())
+}
+
+/// E = max(R, ε d) per row (a floor keeps E > 0 on rows without inertia), the friction rows of a
+/// contact raised to satisfy μ √e₁ = μ₂ √e₂ (its cone is then circular in scaled impulses),
+/// each cone's slope in scaled impulses, and the proximal weights P = E − R.
+fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
+    let n = problem.rows();
+    let floor = 1e-12 * ws.diagonal.iter().copied().fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    ws.e.clear();
+    ws.e.extend((0..n).map(|i| problem.regularization[i].max(epsilon * ws.diagonal[i].max(floor))));
+    for g in 0..ws.groups.len() {
+        if let Group::Cone { normal, .. } = ws.groups[g] {
+            let c = &problem.contacts[contact_of_normal(problem, normal).expect("a contact normal")];
+            let (t1, t2) = (normal + 1, normal + 2);
+            let kappa2 = (c.mu * c.mu * ws.e[t1]).max(c.mu2 * c.mu2 * ws.e[t2]);
+            ws.e[t1] = kappa2 / (c.mu * c.mu);
+            ws.e[t2] = kappa2 / (c.mu2 * c.mu2);
+            ws.groups[g] = Group::Cone { normal, slope: kappa2.sqrt() / ws.e[normal].sqrt() };
+        }
+    }
+    ws.inv_sqrt_e.clear();
+    ws.inv_sqrt_e.extend(ws.e.iter().map(|e| 1.0 / e.sqrt()));
+    ws.prox.clear();
+    ws.prox.extend((0..n).map(|i| ws.e[i] - problem.regularization[i]));
+}
+
+/// Row velocities w = (A + R) λ + b of `lambda` into `ws.w`, and the convex residual and the
+/// report. With the problem's own W, Wᵀλ is kept with the problem for the velocity update.
+fn certify(
+    problem: &ConstraintProblem,
+    w_rows: &RowSparsity,
+    own_rows: bool,
+    ws: &mut Workspace,
+    lambda: &[f64],
+) -> (f64, Residuals) {
+    ws.lambda_vec.as_mut_slice().copy_from_slice(lambda);
+    if own_rows {
+        problem.velocities(&ws.lambda_vec, &mut ws.w);
+    } else {
+        rows::transpose_product(w_rows, lambda, &mut ws.sum);
+        rows::product(w_rows, &ws.sum, problem.bias.as_slice(), ws.w.as_mut_slice());
+        for ((w, r), l) in ws.w.iter_mut().zip(problem.regularization.iter()).zip(lambda) {
+            *w += r * l;
+        }
+        problem.keep_impulse_sum(lambda, &ws.sum);
+    }
+    let report = residuals_at_velocities(problem, &ws.lambda_vec, ws.w.as_slice());
+    (report.convex(), report)
+}
+
+/// Newton iterations on the round's problem (`ws.c`, `ws.e`) from `ws.x`, until the gradient can
+/// change no row velocity by more than a tenth of `goal`, no step moves x, or `budget`
+/// iterations are done; `ws.lambda` is left at λ(x). Returns the iterations done.
+fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Result<usize, SolverError> {
+    let largest_row = ws.diagonal.iter().copied().fold(0.0, f64::max).sqrt();
+    let mut done = 0;
+    loop {
+        rows::product(w, &ws.x, &ws.c, &mut ws.y);
+        evaluate(ws);
+        rows::transpose_product(w, &ws.lambda, &mut ws.sum);
+        let mut norm = 0.0;
+        for k in 0..ws.x.len() {
+            ws.gradient[k] = ws.x[k] - ws.sum[k];
+            norm += ws.gradient[k] * ws.gradient[k];
+        }
+        if largest_row * norm.sqrt() <= 0.1 * goal || done >= budget {
+            return Ok(done);
+        }
+        assemble(ws);
+        ws.hessian.factor().map_err(|_| {
+            SolverError::InvalidProblem("newton: the Hessian is not positive definite".into())
+        })?;
+        for k in 0..ws.x.len() {
+            ws.direction[k] = -ws.gradient[k];
+        }
+        ws.hessian.solve(&mut ws.direction);
+        rows::product(w, &ws.direction, &ws.zeros, &mut ws.u);
+        let alpha = line_search(ws);
+        let mut moved = 0.0f64;
+        for k in 0..ws.x.len() {
+            let step = alpha * ws.direction[k];
+            moved = moved.max(step.abs() / (1.0 + ws.x[k].abs()));
+            ws.x[k] += step;
+        }
+        done += 1;
+        if moved <= 1e-15 {
+            // No progress left at this precision: the answer stands.
+            rows::product(w, &ws.x, &ws.c, &mut ws.y);
+            evaluate(ws);
+            return Ok(done);
+        }
+    }
+}
+
+/// λ(y) of every group at `ws.y`, with the Hessian blocks and zones.
+fn evaluate(ws: &mut Workspace) {
+    for (g, group) in ws.groups.iter().enumerate() {
+        let (first, count) = group.rows();
+        let rows = first..first + count;
+        ws.zones[g] = project(
+            group,
+            &ws.y[rows.clone()],
+            &ws.e[rows.clone()],
+            &ws.inv_sqrt_e[rows.clone()],
+            &mut ws.lambda[rows],
+            Some(&mut ws.curvature[g][..count * count]),
+        );
+    }
+}
+
+/// H = I + Σ_g W_gᵀ G_g W_g over the groups with curvature.
+fn assemble(ws: &mut Workspace) {
+    ws.hessian.reset();
+    for g in 0..ws.groups.len() {
+        if ws.zones[g] == Zone::Free {
+            continue;
+        }
+        let (_, count) = ws.groups[g].rows();
+        let columns = &ws.columns[ws.column_start[g]..ws.column_start[g + 1]];
+        let m = columns.len();
+        let local = &ws.local_w[ws.local_start[g]..ws.local_start[g] + count * m];
+        let curvature = &ws.curvature[g];
+        // G W_g (count × m), then H_g = W_gᵀ (G W_g) (m × m, column-major, lower triangle).
+        ws.gw.clear();
+        ws.gw.resize(count * m, 0.0);
+        for a in 0..count {
+            for b in 0..count {
+                let gab = curvature[a * count + b];
+                if gab != 0.0 {
+                    for k in 0..m {
+                        ws.gw[a * m + k] += gab * local[b * m + k];
+                    }
+                }
+            }
+        }
+        ws.local_h.clear();
+        ws.local_h.resize(m * m, 0.0);
+        for col in 0..m {
+            for row in col..m {
+                let mut s = 0.0;
+                for a in 0..count {
+                    s += local[a * m + row] * ws.gw[a * m + col];
+                }
+                ws.local_h[col * m + row] = s;
+            }
+        }
+        ws.hessian.add(columns, &ws.local_h);
+    }
+}
+
+/// The step α > 0 along `ws.direction` (with `ws.u` = W d) where the directional derivative
+/// `ψ'(α) = dᵀ(x + α d) − uᵀ λ(y + α u)` vanishes: safeguarded Newton on ψ', whose slope
+/// `ψ'' = ‖d‖² + uᵀ G u` comes with each trial. Leaves `ws.y` and `ws.lambda` at the step.
+fn line_search(ws: &mut Workspace) -> f64 {
+    let dd: f64 = ws.direction.iter().map(|d| d * d).sum();
+    let xd: f64 = ws.x.iter().zip(&ws.direction).map(|(x, d)| x * d).sum();
+    ws.y0.copy_from_slice(&ws.y);
+    let derivative = |alpha: f64, ws: &mut Workspace| -> (f64, f64) {
+        for i in 0..ws.y.len() {
+            ws.y[i] = ws.y0[i] + alpha * ws.u[i];
+        }
+        evaluate(ws);
+        let mut slope = xd + alpha * dd;
+        let mut curvature = dd;
+        for (g, group) in ws.groups.iter().enumerate() {
+            let (first, count) = group.rows();
+            for a in 0..count {
+                slope -= ws.u[first + a] * ws.lambda[first + a];
+                if ws.zones[g] != Zone::Free {
+                    for b in 0..count {
+                        curvature += ws.u[first + a] * ws.curvature[g][a * count + b] * ws.u[first + b];
+                    }
+                }
+            }
+        }
+        (slope, curvature)
+    };
+    let (start, _) = derivative(0.0, ws);
+    let (mut lo, mut hi) = (0.0, f64::INFINITY);
+    let mut alpha = 1.0;
+    let mut best = (0.0, start.abs());
+    for _ in 0..40 {
+        let (slope, curvature) = derivative(alpha, ws);
+        if slope.abs() < best.1 {
+            best = (alpha, slope.abs());
+        }
+        if slope.abs() <= 1e-10 * start.abs() {
+            break;
+        }
+        if slope < 0.0 {
+            lo = alpha;
+        } else {
+            hi = alpha;
+        }
+        let mut next = alpha - slope / curvature.max(f64::MIN_POSITIVE);
+        if !(next > lo && next < hi) {
+            next = if hi.is_finite() { 0.5 * (lo + hi) } else { 2.0 * alpha };
+        }
+        if (next - alpha).abs() <= 1e-14 * alpha {
+            break;
+        }
+        alpha = next;
+    }
+    if best.0 != alpha {
+        alpha = best.0;
+        derivative(alpha, ws);
+    }
+    alpha
+}
