@@ -2,8 +2,9 @@
 
 1. Call overhead: ``gelenk.aba(model, data, q, v, tau)`` beside ``pinocchio.aba`` in the same
    process, on ur5, panda and solo12 (free base), and the Rust call's own time on the same
-   inputs in the same process (a loop in Rust: ``gelenk._gelenk._time_aba``): the difference is
-   what the binding costs.
+   inputs in the same process (a loop in Rust: ``gelenk._gelenk._aba_loop``): the difference is
+   what the binding costs. Timed by the process's CPU clock (``time.process_time``), so that
+   time the shared host gives to other processes is not counted.
 2. Rollouts: ``gelenk.rollout`` of B drops x T steps on 1 and 2 threads, beside
    ``mujoco.rollout`` on the same MJCF scene with the same B, T and threads: MuJoCo's humanoid
    (benches/peers/humanoid_fall.xml) in both engines, and gelenk's ragdoll
@@ -11,7 +12,10 @@
    (benches/ragdoll_mjcf.py).
 
 The host is shared and noisy: every figure is the median over rounds, and within a round the
-engines run back to back, so compare ratios measured in one run.
+engines run back to back, so compare ratios measured in one run. The rollout table gives wall
+time (what a user waits for) and the process's CPU time (all threads): when other processes
+hold the cores, two threads cannot halve the wall time, and the CPU time shows whether the
+second thread added work. The load average is printed with the tables.
 
 Usage:
     python python/benches/bench.py [--batch 64] [--steps 1000] [--rounds 3]
@@ -21,6 +25,8 @@ Needs ``pip install pin mujoco`` for the peers (their rows are left out otherwis
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import statistics
 import subprocess
 import sys
@@ -31,20 +37,30 @@ from pathlib import Path
 import numpy as np
 
 import gelenk
-from gelenk._gelenk import _time_aba
+from gelenk._gelenk import _aba_loop
 
 REPO = Path(__file__).resolve().parents[2]
 MODELS = [("ur5", "ur5_robot.urdf", False), ("panda", "panda.urdf", False), ("solo12", "solo12.urdf", True)]
 
 
 def per_call_ns(call, calls=20000, rounds=9):
-    """Median over rounds of the mean ns per call."""
+    """Median over rounds of the mean CPU ns per call."""
     times = []
     for _ in range(rounds):
-        start = time.perf_counter()
+        start = time.process_time_ns()
         for _ in range(calls):
             call()
-        times.append((time.perf_counter() - start) / calls * 1e9)
+        times.append((time.process_time_ns() - start) / calls)
+    return statistics.median(times)
+
+
+def loop_ns(loop, calls=20000, rounds=9):
+    """Median over rounds of the mean CPU ns per iteration of ``loop(calls)``."""
+    times = []
+    for _ in range(rounds):
+        start = time.process_time_ns()
+        loop(calls)
+        times.append((time.process_time_ns() - start) / calls)
     return statistics.median(times)
 
 
@@ -69,11 +85,11 @@ def overhead(rounds):
             path = str(REPO / "models" / urdf)
             pm = pin.buildModelFromUrdf(path, pin.JointModelFreeFlyer()) if floating else pin.buildModelFromUrdf(path)
             pd = pm.createData()
-            pq = pin.randomConfiguration(pm)
+            pq = pin.randomConfiguration(pm, -np.ones(pm.nq), np.ones(pm.nq))
             pv, ptau = rng.normal(size=pm.nv), rng.normal(size=pm.nv)
         for _ in range(rounds):
             ours.append(per_call_ns(lambda: gelenk.aba(model, data, q, v, tau)))
-            rust.append(statistics.median(_time_aba(model, data, q, v, tau, 20000) for _ in range(9)))
+            rust.append(loop_ns(lambda calls: _aba_loop(model, data, q, v, tau, calls)))
             if pin is not None:
                 theirs.append(per_call_ns(lambda: pin.aba(pm, pd, pq, pv, ptau)))
         median = statistics.median
@@ -117,6 +133,13 @@ def mujoco_drops(mujoco, model, batch, seed=0):
     return x
 
 
+def timed(run):
+    """(wall s, process CPU s) of ``run()``."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    run()
+    return time.perf_counter() - wall, time.process_time() - cpu
+
+
 def rollouts(batch, steps, rounds):
     try:
         import mujoco
@@ -124,39 +147,53 @@ def rollouts(batch, steps, rounds):
     except ImportError:
         mujoco = None
     with tempfile.TemporaryDirectory() as tmp:
+        humanoid = REPO / "benches/peers/humanoid_fall.xml"
         scenes = [
-            ("humanoid_fall.xml (MuJoCo's humanoid)", gelenk.load_mjcf(REPO / "benches/peers/humanoid_fall.xml"),
-             REPO / "benches/peers/humanoid_fall.xml"),
+            ("humanoid_fall.xml (MuJoCo's humanoid)", gelenk.load_mjcf(humanoid), humanoid),
             ("ragdoll_fall (gelenk's ragdoll; MuJoCo: benches/ragdoll_mjcf.py)",
              gelenk.load_scene(REPO / "models/ragdoll_fall.toml"), ragdoll_mjcf_file(tmp) if mujoco else None),
         ]
-        print(f"| scene | engine | threads | wall (s), {batch} x {steps} steps | steps/s | speed-up 2 vs 1 thread |")
-        print("|---|---|---:|---:|---:|---:|")
+        print(f"| scene | engine | threads | wall (s) | CPU (s) | steps/s (wall) | speed-up 2 vs 1 thread (wall) |")
+        print("|---|---|---:|---:|---:|---:|---:|")
         for label, world, mjcf in scenes:
             x0 = gelenk_drops(world, batch)
             mj = None
             if mujoco is not None and mjcf is not None:
                 model = mujoco.MjModel.from_xml_path(str(mjcf))
                 mj = (model, mujoco_drops(mujoco, model, batch))
-            times = {("gelenk", 1): [], ("gelenk", 2): [], ("MuJoCo", 1): [], ("MuJoCo", 2): []}
+            times = {key: [] for key in [("gelenk", 1), ("gelenk", 2), ("MuJoCo", 1), ("MuJoCo", 2)]}
             for _ in range(rounds):
                 for threads in (1, 2):
-                    start = time.perf_counter()
-                    gelenk.rollout(world, x0, steps=steps, threads=threads)
-                    times[("gelenk", threads)].append(time.perf_counter() - start)
+                    times[("gelenk", threads)].append(
+                        timed(lambda: gelenk.rollout(world, x0, steps=steps, threads=threads)))
                     if mj is not None:
                         model, mx0 = mj
                         datas = [mujoco.MjData(model) for _ in range(threads)]
-                        start = time.perf_counter()
-                        mj_rollout.rollout(model, datas, mx0, nstep=steps)
-                        times[("MuJoCo", threads)].append(time.perf_counter() - start)
+                        times[("MuJoCo", threads)].append(
+                            timed(lambda: mj_rollout.rollout(model, datas, mx0, nstep=steps)))
             for engine in ("gelenk", "MuJoCo"):
                 if not times[(engine, 1)]:
                     continue
-                one, two = statistics.median(times[(engine, 1)]), statistics.median(times[(engine, 2)])
-                for threads, wall in ((1, one), (2, two)):
-                    speedup = f"{one / two:.2f}x" if threads == 2 else ""
-                    print(f"| {label} | {engine} | {threads} | {wall:.2f} | {batch * steps / wall:,.0f} | {speedup} |")
+                walls = {n: statistics.median(w for w, _ in times[(engine, n)]) for n in (1, 2)}
+                cpus = {n: statistics.median(c for _, c in times[(engine, n)]) for n in (1, 2)}
+                for threads in (1, 2):
+                    speedup = f"{walls[1] / walls[2]:.2f}x" if threads == 2 else ""
+                    print(f"| {label} | {engine} | {threads} | {walls[threads]:.2f} | {cpus[threads]:.2f} "
+                          f"| {batch * steps / walls[threads]:,.0f} | {speedup} |")
+
+
+def peers():
+    found = ""
+    for module, name in (("pinocchio", "pinocchio"), ("mujoco", "mujoco")):
+        try:
+            found += f"{name} {__import__(module).__version__}, "
+        except ImportError:
+            pass
+    return found
+
+
+def load():
+    return "load average (1, 5, 15 min): " + ", ".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 def main():
@@ -166,11 +203,16 @@ def main():
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--only", choices=["overhead", "rollout"])
     args = parser.parse_args()
+    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores; {load()}; "
+          f"gelenk {gelenk.__version__}, {peers()}python {platform.python_version()}")
+    print()
     if args.only in (None, "overhead"):
         overhead(args.rounds)
         print()
     if args.only in (None, "rollout"):
         rollouts(args.batch, args.steps, args.rounds)
+    print()
+    print(load())
 
 
 if __name__ == "__main__":

@@ -250,26 +250,25 @@ pub fn center_of_mass<'py>(
     })
 }
 
-/// Benchmark helper (not part of the API): the mean ns per call of `calls` Rust calls of
-/// `aba(model, data, q, v, tau)` in a loop, in this process and on the same inputs, so that a
-/// benchmark can subtract it from the time of `gelenk.aba` called from Python.
+/// Benchmark helper (not part of the API): `calls` Rust calls of `aba(model, data, q, v, tau)`
+/// in a loop on the same inputs, so that a benchmark can time the Rust call with the clock it
+/// times `gelenk.aba` with, in the same process (python/benches/bench.py).
 #[pyfunction]
-pub fn _time_aba<'py>(
+pub fn _aba_loop<'py>(
     model: &Bound<'py, PyModel>,
     mut data: PyRefMut<'py, PyData>,
     q: &Bound<'py, PyAny>,
     v: &Bound<'py, PyAny>,
     tau: &Bound<'py, PyAny>,
     calls: usize,
-) -> PyResult<f64> {
+) -> PyResult<()> {
     let m = &model.get().model;
     let d = &mut *data;
     inputs(m, d, q, Some((v, "v")), Some((tau, "tau")))?;
     errors::guard(|| {
-        let start = std::time::Instant::now();
         for _ in 0..calls {
             std::hint::black_box(alg::aba(m, &mut d.data, &d.q, &d.v, &d.x).map_err(errors::dynamics)?);
         }
-        Ok(start.elapsed().as_secs_f64() * 1e9 / calls.max(1) as f64)
+        Ok(())
     })
 }

@@ -48,7 +48,7 @@ fn _gelenk(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(algorithms::kinetic_energy, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::potential_energy, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::center_of_mass, m)?)?;
-    m.add_function(wrap_pyfunction!(algorithms::_time_aba, m)?)?;
+    m.add_function(wrap_pyfunction!(algorithms::_aba_loop, m)?)?;
     m.add_function(wrap_pyfunction!(world::load_scene, m)?)?;
     m.add_function(wrap_pyfunction!(world::load_mjcf, m)?)?;
     m.add_function(wrap_pyfunction!(contacts::export_problems, m)?)?;

@@ -221,6 +221,9 @@ fn clock_seed() -> u64 {
 /// Every buffer the algorithms write for one model (Pinocchio's `Data`), allocated once. The
 /// algorithms take it as their second argument and leave their results in it as well as
 /// returning them.
+///
+/// `Data(model)` (or `model.create_data()`): the buffers for `model`; a Data serves only models
+/// of the same sizes (ValueError otherwise).
 #[pyclass(name = "Data", module = "gelenk")]
 pub struct PyData {
     pub data: Data,
@@ -258,7 +261,7 @@ impl PyData {
 
 #[pymethods]
 impl PyData {
-    /// Data for `model`.
+    /// The constructor, documented on the class (where `help()` shows it).
     #[new]
     fn new(model: &Bound<'_, PyModel>) -> Self {
         Self::for_model(&model.get().model)
@@ -321,6 +324,9 @@ pub fn load_urdf(
 
 /// Builds a model body by body (parents may come after their children), as the URDF loader
 /// does; `build()` validates it and numbers the joints depth-first.
+///
+/// `ModelBuilder(name="", gravity=(0, 0, -9.81))`: an empty model called `name` with gravity
+/// `gravity` (m/s², world frame).
 #[pyclass(name = "ModelBuilder", module = "gelenk")]
 pub struct PyModelBuilder {
     builder: ModelBuilder,
@@ -360,7 +366,7 @@ fn joint_of(
 
 #[pymethods]
 impl PyModelBuilder {
-    /// An empty model called `name` with gravity `gravity` (m/s², world frame).
+    /// The constructor, documented on the class (where `help()` shows it).
     #[new]
     #[pyo3(signature = (name="", gravity=[0.0, 0.0, -9.81]))]
     fn new(name: &str, gravity: [f64; 3]) -> Self {
@@ -430,6 +436,9 @@ pub fn integrate<'py>(
     dt: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let m = &model.get().model;
+    if !dt.is_finite() {
+        return Err(PyValueError::new_err(format!("dt must be finite, got {dt}")));
+    }
     let (q, v) = (vector(q, "q", m.nq())?, vector(v, "v", m.nv())?);
     crate::arrays::check_finite(q.as_slice(), "q")?;
     crate::arrays::check_finite(v.as_slice(), "v")?;

@@ -68,6 +68,14 @@ fn template(scene: &Bound<'_, PyAny>) -> PyResult<(Sim, Layout)> {
     Err(PyTypeError::new_err("scene: expected a gelenk.World or a gelenk.Model"))
 }
 
+/// Why one world of a rollout stopped.
+enum Failure {
+    /// Its initial state was refused (the message says why).
+    InitialState(String),
+    /// A step failed (the message names the step).
+    Step(String),
+}
+
 /// Steps one world from `initial` for `steps` steps, with joint forces `controls[t]` (if any)
 /// before step t, writing the state after each step into `out` (steps × nstate).
 fn run_one(
@@ -78,14 +86,14 @@ fn run_one(
     out: &mut [f64],
     record: &mut StepRecord,
     want_stats: bool,
-) -> Result<(), (bool, String)> {
+) -> Result<(), Failure> {
     let (nstate, nv) = (layout.nstate(), layout.nv());
-    sim.write_state(layout, initial).map_err(|e| (false, e))?;
+    sim.write_state(layout, initial).map_err(Failure::InitialState)?;
     for (t, row) in out.chunks_mut(nstate).enumerate() {
         if let Some(u) = controls {
-            sim.write_tau(layout, &u[t * nv..(t + 1) * nv]).map_err(|e| (false, format!("step {t}: {e}")))?;
+            sim.write_tau(layout, &u[t * nv..(t + 1) * nv]);
         }
-        sim.step().map_err(|e| (true, e))?;
+        sim.step().map_err(Failure::Step)?;
         sim.read_state(layout, row);
         if want_stats {
             let s = sim.world().stats();
@@ -160,6 +168,13 @@ pub fn rollout<'py>(
         Ok(slice) => Cow::Borrowed(slice),
         Err(_) => Cow::Owned(c.as_array().iter().copied().collect()),
     });
+    if let Some(k) = controls.as_deref().and_then(|c| c.iter().position(|x| !x.is_finite())) {
+        let (b, t, i) = (k / (steps * nv), k / nv % steps, k % nv);
+        return Err(PyValueError::new_err(format!(
+            "controls[{b}, {t}, {i}] is not finite ({})",
+            controls.as_deref().map_or(0.0, |c| c[k])
+        )));
+    }
 
     let states = PyArray3::<f64>::zeros(py, [batch, steps, nstate], false);
     let mut out = states.readwrite();
@@ -196,12 +211,14 @@ pub fn rollout<'py>(
             Ok(results.into_iter().find_map(Result::err))
         })
     })?;
-    if let Some((b, (is_step, message))) = failure {
-        return Err(if is_step {
-            StepError::new_err(format!("rollout {b}, {message}"))
-        } else {
-            PyValueError::new_err(format!("initial_states[{b}] / controls[{b}]: {message}"))
-        });
+    match failure {
+        Some((b, Failure::Step(message))) => {
+            return Err(StepError::new_err(format!("rollout {b}, {message}")))
+        }
+        Some((b, Failure::InitialState(message))) => {
+            return Err(PyValueError::new_err(format!("initial_states[{b}]: {message}")))
+        }
+        None => {}
     }
     if !stats {
         return Ok(states.into_any());

@@ -17,6 +17,13 @@ use std::sync::{Arc, Mutex, MutexGuard};
 /// stepped together (`step`, `advance`). Its state is the flat vector `[qpos, qvel]` over its
 /// multibodies in order (`get_state`, `set_state`, `state_labels`, `joint_index`); each
 /// multibody's own q, v and joint forces τ are reachable by index or name.
+///
+/// `World(model, dt=None, gravity=None, ground=False, missing_meshes="error")`: a world holding
+/// `model` as its only multibody, at the model's neutral configuration and at rest, with time
+/// step `dt` (s; default 0.002), gravity `gravity` (m/s²; default (0, 0, −9.81)) and, if
+/// `ground`, the ground plane z = 0. A collision mesh that cannot be found is an error, or with
+/// `missing_meshes="skip"` left out (listed in `warnings`). Scene files, MJCF files and the
+/// built-in scenes give worlds too: `load_scene`, `load_mjcf`, `World.builtin`.
 #[pyclass(name = "World", module = "gelenk")]
 pub struct PyWorld {
     /// Locked only to reach the world from `&self`; Python's borrow rules already serialize use.
@@ -110,10 +117,7 @@ pub fn stats_dict<'py>(py: Python<'py>, stats: &gelenk::world::StepStats) -> PyR
 
 #[pymethods]
 impl PyWorld {
-    /// A world holding `model` as its only multibody, at the model's neutral configuration and
-    /// at rest, with time step `dt` (s; default 0.002), gravity `gravity` (m/s²; default
-    /// (0, 0, −9.81)) and, if `ground`, the ground plane z = 0. A collision mesh that cannot be
-    /// found is an error, or with `missing_meshes="skip"` left out (listed in `warnings`).
+    /// The constructor, documented on the class (where `help()` shows it).
     #[new]
     #[pyo3(signature = (model, dt=None, gravity=None, ground=false, missing_meshes="error"))]
     fn new(
@@ -300,7 +304,9 @@ impl PyWorld {
     #[setter]
     fn set_tau(&self, tau: &Bound<'_, PyAny>) -> PyResult<()> {
         let tau = vector(tau, "tau", self.layout.nv())?;
-        self.lock().write_tau(&self.layout, tau.as_slice()).map_err(PyValueError::new_err)
+        crate::arrays::check_finite(tau.as_slice(), "tau")?;
+        self.lock().write_tau(&self.layout, tau.as_slice());
+        Ok(())
     }
     /// Configuration q of one multibody (an index or a name).
     fn q<'py>(&self, py: Python<'py>, multibody: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {

@@ -74,3 +74,30 @@ def test_export_problems_writes_the_clis_files(cli, tmp_path):
     assert files == sorted(p.relative_to(py_dir) for p in py_dir.rglob("*") if p.is_file())
     for f in files:
         assert (cli_dir / f).read_bytes() == (py_dir / f).read_bytes(), f
+
+
+def cli_error(cli, *args):
+    """The message the command line prints after `gelenk: error: ` (it must fail)."""
+    result = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)
+    assert result.returncode != 0, result.stdout
+    lines = [l for l in result.stderr.splitlines() if l.startswith("gelenk: error: ")]
+    assert len(lines) == 1, result.stderr
+    return lines[0][len("gelenk: error: "):]
+
+
+def test_errors_carry_the_clis_message(cli, repo, tmp_path):
+    missing = tmp_path / "missing.urdf"
+    with pytest.raises(FileNotFoundError) as error:
+        gelenk.load_urdf(missing)
+    assert str(error.value) == cli_error(cli, "inspect", missing)
+    bad_urdf = tmp_path / "bad.urdf"
+    bad_urdf.write_text("<robot name='r'><link name='a'/><joint name='j' type='revolute'>"
+                        "<parent link='a'/><child link='nowhere'/></joint></robot>")
+    with pytest.raises(ValueError) as error:
+        gelenk.load_urdf(bad_urdf)
+    assert str(error.value) == cli_error(cli, "inspect", bad_urdf)
+    bad_scene = tmp_path / "bad.toml"
+    bad_scene.write_text("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\nmass = -1\n")
+    with pytest.raises(ValueError) as error:
+        gelenk.load_scene(bad_scene)
+    assert str(error.value) == cli_error(cli, "simulate", bad_scene, "--duration", 0.1)

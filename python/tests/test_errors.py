@@ -61,6 +61,8 @@ def test_a_degenerate_quaternion_is_a_value_error(repo):
         gelenk.crba(model, data, q)
     with pytest.raises(ValueError, match="quaternion"):
         gelenk.integrate(model, q, np.zeros(model.nv))
+    with pytest.raises(ValueError, match="^dt must be finite, got NaN$"):
+        gelenk.integrate(model, model.neutral(), np.zeros(model.nv), float("nan"))
 
 
 def test_data_of_another_model_is_refused(repo, ur5):
@@ -131,7 +133,12 @@ def test_a_failed_step_is_a_step_error_and_the_state_stays(repo):
         bad = state.copy()
         bad[world.nq + 3] = np.nan
         world.set_state(bad)
+    with pytest.raises(ValueError, match=r"^tau\[4\] is not finite \(NaN\)$"):
+        bad = np.zeros(world.nv)
+        bad[4] = np.nan
+        world.tau = bad
     assert np.array_equal(world.get_state(), state), "a refused state changes nothing"
+    assert np.array_equal(world.tau, np.zeros(world.nv)), "refused forces change nothing"
     # Joint forces of 1e300 N·m overflow the dynamics: the step fails, the state is kept.
     tau = np.full(world.nv, 1e300)
     world.tau = tau

@@ -90,9 +90,13 @@ def test_bad_input_is_refused(ragdoll):
         gelenk.rollout(ragdoll, x0, steps=3, threads=0)
     bad = x0.copy()
     bad[1, 0] = np.nan
-    with pytest.raises(ValueError, match=r"initial_states\[1\].*is not finite"):
+    with pytest.raises(ValueError, match=r"^initial_states\[1\]: multibody `ragdoll.*` is not finite \(NaN\)$"):
         gelenk.rollout(ragdoll, bad, steps=3)
     controls = np.zeros((2, 3, ragdoll.nv))
+    controls[1, 2, 5] = np.inf
+    with pytest.raises(ValueError, match=r"^controls\[1, 2, 5\] is not finite \(inf\)$"):
+        gelenk.rollout(ragdoll, x0, controls)
+    controls[1, 2, 5] = 0.0
     controls[0, 2, 7] = 1e300
     with pytest.raises(gelenk.StepError, match=r"^rollout 0, step 3 \(t = 0.004"):
         gelenk.rollout(ragdoll, x0, controls)
