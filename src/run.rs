@@ -398,8 +398,10 @@ fn record_columns(scene: &Scene) -> Vec<String> {
     columns
 }
 
-/// Names of the q and v components of a joint, in order.
-fn coordinate_labels(joint: &Joint) -> (Vec<&'static str>, Vec<&'static str>) {
+/// Names of the q and v components of a joint, in order, as [`Recording::columns`] uses them:
+/// a scalar joint's q component is unnamed (`""`: the column is the joint's name) and its v
+/// component is `v`; a free joint's are `x y z qx qy qz qw` and `vx vy vz wx wy wz`.
+pub fn coordinate_labels(joint: &Joint) -> (Vec<&'static str>, Vec<&'static str>) {
     match joint {
         Joint::Fixed => (vec![], vec![]),
         Joint::Hinge { .. } | Joint::Slider { .. } => (vec![""], vec!["v"]),

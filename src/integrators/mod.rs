@@ -74,8 +74,9 @@ pub enum IntegratorError {
     },
 }
 
-/// A time-stepping scheme for `q̈ = aba(q, v, τ + τ_p)`.
-pub trait Integrator {
+/// A time-stepping scheme for `q̈ = aba(q, v, τ + τ_p)`. `Send`, as [`crate::solvers::ConstraintSolver`]:
+/// a world holding integrators can be stepped on another thread.
+pub trait Integrator: Send {
     /// Short name, e.g. `"rk4"`.
     fn name(&self) -> &'static str;
     /// Order of convergence p: the global error at a fixed time shrinks as hᵖ.

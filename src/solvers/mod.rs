@@ -42,8 +42,9 @@ pub struct SolveInfo {
     pub residuals: Option<Residuals>,
 }
 
-/// A solver of constraint problems.
-pub trait ConstraintSolver {
+/// A solver of constraint problems. `Send`, so that a [`crate::world::World`] holding a chain of
+/// them can be moved to and stepped on another thread (batched rollouts step one world per thread).
+pub trait ConstraintSolver: Send {
     /// Short name (`lemke`, `clarabel`, `pgs`).
     fn name(&self) -> &'static str;
     /// Solves `problem`, writing impulses (N·s) into `lambda`, which holds a warm start on entry

@@ -140,6 +140,14 @@ pub struct World {
     stats: StepStats,
 }
 
+/// A world is `Send`: it can be built on one thread and stepped on another (batched rollouts
+/// step one world per thread). Checked at compile time.
+const _: fn() = || {
+    fn send<T: Send>() {}
+    send::<World>();
+    send::<crate::io::scene::Scene>();
+};
+
 impl World {
     /// An empty world.
     pub fn new(options: WorldOptions) -> Self {

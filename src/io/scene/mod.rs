@@ -380,6 +380,12 @@ impl Scene {
         Ok(())
     }
 
+    /// A new copy of the scene built from its text: its world at the initial state, this one
+    /// left as it is (batched rollouts build one world per rollout this way).
+    pub fn rebuilt(&self) -> Result<Scene, SceneError> {
+        build::build(self.source.clone(), &Overrides::default())
+    }
+
     /// Builds the scene again from its text with `dt` and the solver chain replaced where given
     /// (the world back at its initial state); [`run`] uses it for its options.
     pub(crate) fn rebuild_with(
