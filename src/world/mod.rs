@@ -22,6 +22,7 @@
 
 mod contact_rows;
 mod dofs;
+pub mod gyroscopic;
 mod loops;
 mod materials;
 mod multibody;
