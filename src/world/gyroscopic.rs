@@ -78,9 +78,9 @@ fn angular_velocity(model: &Model, data: &Data, body: usize, v: &[f64]) -> Vec3 
     let mut omega = Vec3::zeros();
     let mut b = body;
     while b != 0 {
-        let k0 = model.idx_v(b);
-        for k in k0..k0 + model.joint(b).nv() {
-            omega += data.j_world[k].angular * v[k];
+        let dofs = model.idx_v(b)..model.idx_v(b) + model.joint(b).nv();
+        for (column, vk) in data.j_world[dofs.clone()].iter().zip(&v[dofs]) {
+            omega += column.angular * *vk;
         }
         b = model.parent(b);
     }
@@ -92,9 +92,9 @@ fn angular_velocity(model: &Model, data: &Data, body: usize, v: &[f64]) -> Vec3 
 fn add_couple(model: &Model, data: &Data, body: usize, t: &Vec3, out: &mut [f64]) {
     let mut b = body;
     while b != 0 {
-        let k0 = model.idx_v(b);
-        for k in k0..k0 + model.joint(b).nv() {
-            out[k] += data.j_world[k].angular.dot(t);
+        let dofs = model.idx_v(b)..model.idx_v(b) + model.joint(b).nv();
+        for (column, out_k) in data.j_world[dofs.clone()].iter().zip(&mut out[dofs]) {
+            *out_k += column.angular.dot(t);
         }
         b = model.parent(b);
     }
