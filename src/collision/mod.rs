@@ -53,5 +53,5 @@ pub use reduce::MAX_POINTS_PER_PAIR;
 pub use shape::ShapeKind;
 pub use world::{
     Attachment, Collider, CollisionFilter, CollisionOptions, CollisionStats, CollisionWorld, Contact,
-    ManifoldReuse,
+    ManifoldReuse, SweepDiagnostic, SweepStats, SweptMotion,
 };

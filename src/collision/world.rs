@@ -16,6 +16,9 @@ use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::math::Pose;
 use parry3d_f64::shape::SharedShape;
 
+mod sweep;
+pub use sweep::{SweepDiagnostic, SweepStats, SweptMotion};
+
 /// What a collider moves with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Attachment {
@@ -82,6 +85,9 @@ pub struct Collider {
     /// Contacts of this collider stand for a patch: one point per pair (see
     /// [`CollisionWorld::set_patch_contact`]).
     patch: bool,
+    /// Radius (m) of a ball about the shape frame's origin holding the shape (infinite for
+    /// unbounded shapes): bounds the distance a point travels as the collider turns.
+    radius: f64,
 }
 
 impl Collider {
@@ -231,6 +237,10 @@ pub struct CollisionWorld {
     warnings: Vec<String>,
     step: u64,
     stats: CollisionStats,
+    /// Per collider, its motion over the next step if it is swept ([`CollisionWorld::set_motion`]).
+    motions: Vec<Option<SweptMotion>>,
+    sweep_diagnostics: Vec<SweepDiagnostic>,
+    sweep_stats: SweepStats,
 }
 
 impl CollisionWorld {
@@ -453,9 +463,15 @@ impl CollisionWorld {
         self.step += 1;
         self.contacts.clear();
         self.stats = CollisionStats::default();
+        self.sweep_stats = SweepStats::default();
+        self.sweep_diagnostics.clear();
         let margin = self.options.margin;
         self.aabbs.clear();
-        self.aabbs.extend(self.colliders.iter().map(|c| c.aabb.loosened(margin)));
+        for c in 0..self.colliders.len() {
+            let aabb = self.swept_aabb(c, self.colliders[c].aabb.loosened(margin));
+            self.sweep_stats.swept_colliders += usize::from(self.is_swept(c));
+            self.aabbs.push(aabb);
+        }
         self.pair_buffer.clear();
         let (colliders, multibodies, options) = (&self.colliders, &self.multibodies, &self.options);
         let pairs = &mut self.pair_buffer;
@@ -525,6 +541,9 @@ impl CollisionWorld {
             }
         }
         if self.candidates.is_empty() {
+            if self.is_swept(a) || self.is_swept(b) {
+                self.sweep_pair(a, b);
+            }
             return;
         }
         self.stats.touching_pairs += 1;
@@ -601,6 +620,8 @@ fn make_collider(
     let local = built.offset.map_or(placement, |offset| placement * offset);
     let local_pose = to_pose(&local);
     let aabb = built.shape.compute_aabb(&local_pose);
+    let sphere = built.shape.compute_local_bounding_sphere();
+    let radius = from_vector(sphere.center).norm() + sphere.radius;
     Collider {
         name,
         attachment,
@@ -615,6 +636,7 @@ fn make_collider(
         world_pose: local_pose,
         aabb,
         patch: false,
+        radius,
     }
 }
 

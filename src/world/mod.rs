@@ -22,6 +22,7 @@
 
 mod contact_rows;
 mod dofs;
+pub mod gyroscopic;
 mod loops;
 mod materials;
 mod multibody;
@@ -138,6 +139,8 @@ pub struct World {
     /// Simulated time owed to [`World::advance`] (s).
     accumulator: f64,
     stats: StepStats,
+    /// Bodies swept by continuous collision at any speed ([`World::set_always_swept`]).
+    always_swept: Vec<(usize, usize)>,
 }
 
 /// A world is `Send`: it can be built on one thread and stepped on another (batched rollouts
@@ -169,6 +172,7 @@ impl World {
             steps: 0,
             accumulator: 0.0,
             stats: StepStats::default(),
+            always_swept: Vec::new(),
         }
     }
 
@@ -258,6 +262,29 @@ impl World {
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
     pub fn set_integrator(&mut self, integrator: IntegratorKind) {
         self.options.integrator = integrator;
+    }
+
+    /// Turns the automatic sweeping of fast colliders on or off
+    /// ([`WorldOptions::continuous_collision`]).
+    pub fn set_continuous_collision(&mut self, on: bool) {
+        self.options.continuous_collision = on;
+    }
+
+    /// Sweeps body `body` of multibody `multibody` along its motion at every step, whatever its
+    /// speed (`on`), or only when it moves fast and [`WorldOptions::continuous_collision`] is on
+    /// (`!on`). A body without a collider is accepted and reported in each step's
+    /// [`StepStats::sweep_diagnostics`] ([`crate::collision::SweepDiagnostic::NoShape`]).
+    pub fn set_always_swept(&mut self, multibody: usize, body: usize, on: bool) -> Result<(), StepError> {
+        self.check_multibody(multibody)?;
+        let count = self.bodies[multibody].model.nbodies();
+        if body == 0 || body >= count {
+            return Err(StepError::IndexOutOfRange { what: "bodies", index: body, count });
+        }
+        self.always_swept.retain(|&x| x != (multibody, body));
+        if on {
+            self.always_swept.push((multibody, body));
+        }
+        Ok(())
     }
 
     /// Replaces which contacts still apart get rows ([`WorldOptions::speculation`]).
@@ -479,7 +506,18 @@ impl World {
         stages::check::states(&self.bodies, &self.names)?;
         stages::kinematics::run(&mut self.bodies, &self.names, &mut self.collision)?;
         timer.lap(Phase::Kinematics);
-        stages::collision::run(&mut self.bodies, &self.names, &mut self.collision, &mut self.contacts)?;
+        let sweeps = stages::collision::Sweeps {
+            continuous: self.options.continuous_collision,
+            always: &self.always_swept,
+        };
+        stages::collision::run(
+            &mut self.bodies,
+            &self.names,
+            &mut self.collision,
+            &mut self.contacts,
+            h,
+            sweeps,
+        )?;
         timer.lap(Phase::Collision);
         let smooth = self.prepare_smooth_step();
         let has_rows = self.free_motion(h, smooth)?;
@@ -576,6 +614,7 @@ impl World {
             diagnostics,
             timer,
             integrator,
+            (self.collision.sweep_stats(), self.collision.sweep_diagnostics()),
         );
     }
 

@@ -1,6 +1,7 @@
 //! One multibody of a world: its model, data, state, applied forces, motors and the buffers of
 //! its share of a step.
 
+use super::gyroscopic::Gyroscopic;
 use crate::algorithms::{
     aba, check_v, compute_joint_jacobians, crba_packed_at_kinematics, factor_mass_matrix,
     nonlinear_effects_at_kinematics, solve_mass_matrix_slice,
@@ -111,6 +112,8 @@ pub struct Multibody {
     pub(crate) factored: bool,
     /// Joint damping and suspension springs, treated implicitly.
     implicit_terms: ImplicitTerms,
+    /// The gyroscopic couple of spinning bodies of free and ball joints, treated implicitly.
+    gyroscopic: Gyroscopic,
     /// `data` holds the factor of a mass matrix that does not depend on q (free bodies on the
     /// root, no joint damping: see [`has_constant_mass_matrix`]): the free motion skips CRBA and
     /// the factorization. Other writers of the factor (smooth steps) write the same M, up to
@@ -167,6 +170,7 @@ impl Multibody {
         let nb = model.nbodies();
         Self {
             implicit_terms: ImplicitTerms::new(&model),
+            gyroscopic: Gyroscopic::new(&model),
             data,
             state,
             tau: DVector::zeros(nv),
@@ -210,6 +214,13 @@ impl Multibody {
         let (model, data, out) = (&self.model, &self.data, &mut self.world_velocities);
         propagate_world_velocities(model, data, self.state.v.as_slice(), &mut out.start);
         propagate_world_velocities(model, data, self.v_free.as_slice(), &mut out.free);
+    }
+
+    /// Fills `world_velocities.start` alone (the collision stage's sweeps read it before the
+    /// free motion).
+    pub(crate) fn update_start_world_velocities(&mut self) {
+        let (model, data, out) = (&self.model, &self.data, &mut self.world_velocities);
+        propagate_world_velocities(model, data, self.state.v.as_slice(), &mut out.start);
     }
 
     /// Fills `world_velocities.solved` the same way under `v`, the velocity after a solve (this
@@ -299,7 +310,9 @@ impl Multibody {
 
     /// The free velocity `v_free = v + h M̃⁻¹ (τ + τ_ext − C v − g − D v − K (s + h v))` with
     /// `M̃ = M + h D + h² K` (damping D and suspension stiffness K treated implicitly, so that stiff
-    /// springs and strong damping stay stable). With `need_factor` false and no implicit terms,
+    /// springs and strong damping stay stable), and the gyroscopic couple of spinning bodies of
+    /// free and ball joints taken out of `C v` and treated implicitly (see
+    /// [`super::gyroscopic`]). With `need_factor` false, no implicit terms and nothing spinning,
     /// ABA gives it in O(n) without M.
     pub(crate) fn free_motion(
         &mut self,
@@ -314,7 +327,8 @@ impl Multibody {
         }
         self.rhs.copy_from(&self.tau);
         self.rhs += &self.tau_external;
-        if !need_factor && self.implicit_terms.is_empty() {
+        let spinning = self.gyroscopic.any_spinning(&self.model, &self.data, self.state.v.as_slice(), h);
+        if !need_factor && !spinning && self.implicit_terms.is_empty() {
             let a = aba(&self.model, &mut self.data, &self.state.q, &self.state.v, &self.rhs)?;
             self.v_free.copy_from(&self.state.v);
             self.v_free.axpy(h, a, 1.0);
@@ -336,6 +350,9 @@ impl Multibody {
             self.v_free.copy_from(&self.state.v);
             self.v_free.axpy(h, &self.rhs, 1.0);
             self.factored = true;
+            if spinning {
+                self.gyroscopic.apply(&self.model, &self.data, &self.state.v, &mut self.v_free, h);
+            }
             self.add_frame_rotation_terms(h);
             return Ok(());
         }
@@ -366,6 +383,9 @@ impl Multibody {
             self.kept_factor.keep(&self.data, &self.state.q, h);
         }
         self.factored = true;
+        if spinning {
+            self.gyroscopic.apply(&self.model, &self.data, &self.state.v, &mut self.v_free, h);
+        }
         self.add_frame_rotation_terms(h);
         Ok(())
     }

@@ -105,6 +105,12 @@ pub struct WorldOptions {
     /// Which contacts within the margin but still apart get rows: those the step can close
     /// ([`Speculation`]; [`Speculation::ALL`]: every one).
     pub speculation: Speculation,
+    /// Continuous collision: a collider that moves further than the contact margin in one step
+    /// (at the step's starting velocity) is swept along its motion, and a pair it would meet
+    /// within the step gets a speculative contact at the time of impact, so that a fast body
+    /// cannot pass through another (docs/collision.md). Slower colliders cost nothing more.
+    /// [`super::World::set_always_swept`] sweeps chosen bodies at any speed.
+    pub continuous_collision: bool,
     /// Friction cone or pyramid.
     pub friction: FrictionModel,
     /// Solver chain, first choice first.
@@ -169,6 +175,7 @@ impl Default for WorldOptions {
             gravity: Vec3::new(0.0, 0.0, -9.81),
             collision: CollisionOptions::default(),
             speculation: Speculation::default(),
+            continuous_collision: true,
             friction: FrictionModel::Cone,
             solvers: vec![SolverKind::Pgs { iterations: 100, omega: 1.0 }, SolverKind::Clarabel],
             tolerance: 1e-6,

@@ -3,7 +3,7 @@
 //! the state.
 
 use super::{Multibody, World};
-use crate::collision::Contact;
+use crate::collision::{Contact, SweepDiagnostic, SweepStats};
 use crate::math::Vec3;
 use crate::solvers::{ChainReport, Fallback, SolverChain};
 use std::time::Instant;
@@ -44,6 +44,12 @@ pub struct StepStats {
     /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step, else the
     /// name of [`super::WorldOptions::integrator`] (a smooth step, see [`super::smooth`]).
     pub integrator: &'static str,
+    /// Colliders swept by continuous collision, time-of-impact queries and the speculative
+    /// contacts they added ([`super::WorldOptions::continuous_collision`]).
+    pub sweeps: SweepStats,
+    /// What the sweeps could not do: a sweep asked of a body without a collider, a
+    /// time-of-impact query that did not converge or is not supported for a pair.
+    pub sweep_diagnostics: Vec<SweepDiagnostic>,
 }
 
 /// The phases of a step timed by [`PhaseTimer`], in the order of [`StepStats::phase_ns`].
@@ -108,6 +114,7 @@ impl StepStats {
         diagnostics: Diagnostics,
         timer: PhaseTimer,
         integrator: &'static str,
+        (sweeps, sweep_diagnostics): (SweepStats, &[SweepDiagnostic]),
     ) -> Self {
         let report = report.unwrap_or_else(|| ChainReport {
             solver: "",
@@ -133,6 +140,8 @@ impl StepStats {
             constraint_violation: diagnostics.constraint_violation,
             phase_ns: timer.ns,
             integrator,
+            sweeps,
+            sweep_diagnostics: sweep_diagnostics.to_vec(),
         }
     }
 }

@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 // The reports.
 #[derive(clap::Subcommand)]
 pub enum ReportCommand {
-    /// The hard-case suite (tests/hard_cases.rs) for every solver and time step: a pass/fail
-    /// table with the measured figure in each cell, as stability.md and stability.csv in DIR
-    /// (markdown on stdout without --out). Progress goes to stderr.
+    /// The hard-case suite (tests/hard_cases.rs) for the default solver chain, every solver
+    /// and time step: a pass/fail table with the measured figure and the cost of a step in each
+    /// cell, as stability.md and stability.csv in DIR, rewritten as each cell finishes
+    /// (markdown on stdout at the end without --out). Progress goes to stderr.
     Stability {
         /// Output directory.
         #[arg(long)]
@@ -17,9 +18,18 @@ pub enum ReportCommand {
         /// Only these cases (comma-separated names; default: all).
         #[arg(long, value_delimiter = ',')]
         cases: Vec<String>,
-        /// Only these solvers (lemke, clarabel, pgsN; default: lemke, clarabel, pgs10, pgs50).
+        /// Only these columns: default (the world's default chain), lemke, clarabel, newton,
+        /// pgsN (default: default, lemke, clarabel, pgs10, pgs50).
         #[arg(long, value_delimiter = ',')]
         solvers: Vec<String>,
+        /// Wall-clock budget of one cell in s: a cell still running then is recorded as
+        /// "timeout" (default 120; 10 with --quick).
+        #[arg(long)]
+        budget: Option<f64>,
+        /// The default chain alone at dt = 1/60 s, 10 s per cell at most: the whole suite in
+        /// under a minute (--solvers, --dt and --budget still apply).
+        #[arg(long)]
+        quick: bool,
         /// Only these time steps in s, each in [1e-6, 0.05] (default: 1/60, 1/240, 1/1000).
         #[arg(long, value_delimiter = ',')]
         dt: Vec<f64>,
@@ -54,8 +64,9 @@ pub enum ReportCommand {
 /// Runs `gelenk report …`.
 pub fn run(command: ReportCommand) -> Result<(), String> {
     match command {
-        ReportCommand::Stability { out, cases, solvers, dt, integrators } => {
-            report_stability(out.as_deref(), &cases, &solvers, &dt, &integrators)
+        ReportCommand::Stability { out, cases, solvers, dt, integrators, budget, quick } => {
+            let options = StabilityOptions { cases, solvers, dts: dt, integrators, budget, quick };
+            report_stability(out.as_deref(), &options)
         }
         ReportCommand::SpeedError { out, quick, peers, repeats, scenes } => {
             report_speed_error(&out, quick, &peers, repeats, scenes)
@@ -63,14 +74,19 @@ pub fn run(command: ReportCommand) -> Result<(), String> {
     }
 }
 
-fn report_stability(
-    out: Option<&Path>,
-    cases: &[String],
-    solvers: &[String],
-    dts: &[f64],
-    integrators: &[String],
-) -> Result<(), String> {
+/// The selection of `gelenk report stability`.
+struct StabilityOptions {
+    cases: Vec<String>,
+    solvers: Vec<String>,
+    dts: Vec<f64>,
+    integrators: Vec<String>,
+    budget: Option<f64>,
+    quick: bool,
+}
+
+fn report_stability(out: Option<&Path>, options: &StabilityOptions) -> Result<(), String> {
     use gelenk::report::stability;
+    let StabilityOptions { cases, solvers, dts, integrators, budget, quick } = options;
     let selected: Vec<stability::Case> = if cases.is_empty() {
         stability::CASES.to_vec()
     } else {
@@ -84,17 +100,27 @@ fn report_stability(
             })
             .collect::<Result<_, _>>()?
     };
-    let solver_kinds: Vec<gelenk::world::SolverKind> = if solvers.is_empty() {
-        stability::SOLVERS.to_vec()
-    } else {
+    let columns: Vec<stability::Column> = if !solvers.is_empty() {
         solvers
             .iter()
-            .map(|name| {
-                gelenk::world::SolverKind::parse(name).ok_or_else(|| format!("unknown solver `{name}`"))
-            })
+            .map(|name| stability::Column::parse(name).ok_or_else(|| format!("unknown solver `{name}`")))
             .collect::<Result<_, _>>()?
+    } else if *quick {
+        vec![stability::Column::Default]
+    } else {
+        stability::COLUMNS.to_vec()
     };
-    let dts: Vec<f64> = if dts.is_empty() { stability::TIME_STEPS.to_vec() } else { dts.to_vec() };
+    let dts: Vec<f64> = if !dts.is_empty() {
+        dts.to_vec()
+    } else if *quick {
+        stability::TIME_STEPS[..1].to_vec()
+    } else {
+        stability::TIME_STEPS.to_vec()
+    };
+    let budget = budget.unwrap_or(if *quick { 10.0 } else { 120.0 });
+    if !(budget > 0.0 && budget <= 1e6) {
+        return Err(format!("budget {budget} s is outside (0, 1e6] s"));
+    }
     // The shortest phase of a case lasts 0.05 s, the longest case 10 s: a step outside
     // [1e-6, 0.05] s would time nothing or run for ever.
     if let Some(bad) = dts.iter().find(|h| !(1e-6..=0.05).contains(*h)) {
@@ -117,27 +143,49 @@ fn report_stability(
             })
             .collect::<Result<_, _>>()?
     };
-    let cells = stability::run(&selected, &solver_kinds, &dts, &integrator_kinds, |cell| {
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    // Each finished cell rewrites the files, so that an interrupted run leaves its results.
+    let mut finished: Vec<stability::Cell> = Vec::new();
+    let mut write_error: Option<String> = None;
+    let budget = Some(std::time::Duration::from_secs_f64(budget));
+    let cells = stability::run(&selected, &columns, &dts, &integrator_kinds, budget, |cell| {
         let status = match &cell.outcome {
-            None => "skipped".to_string(),
-            Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
-            Some(Err(e)) => format!("error: {e}"),
+            stability::CellOutcome::Error(e) => format!("error: {e}"),
+            _ => stability::cell_text(cell),
         };
         eprintln!(
             "{:<15} {:<9} dt {:<9.6} {:<19} {status} ({:.1} s)",
             cell.case, cell.solver, cell.dt, cell.integrator, cell.seconds
         );
-    });
-    let markdown = stability::markdown(&cells, &selected);
-    match out {
-        None => print!("{markdown}"),
-        Some(dir) => {
-            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-            for (name, text) in [("stability.md", markdown), ("stability.csv", stability::csv(&cells))] {
-                let path = dir.join(name);
-                std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
-            }
+        finished.push(cell.clone());
+        if let (Some(dir), None) = (out, &write_error) {
+            write_error = write_stability(dir, &finished, &selected).err();
         }
+    });
+    if let Some(e) = write_error {
+        return Err(e);
+    }
+    match out {
+        None => print!("{}", stability::markdown(&cells, &selected)),
+        Some(dir) => write_stability(dir, &cells, &selected)?,
+    }
+    Ok(())
+}
+
+/// Writes stability.md and stability.csv of `cells` into `dir`.
+fn write_stability(
+    dir: &Path,
+    cells: &[gelenk::report::stability::Cell],
+    cases: &[gelenk::report::stability::Case],
+) -> Result<(), String> {
+    use gelenk::report::stability;
+    for (name, text) in
+        [("stability.md", stability::markdown(cells, cases)), ("stability.csv", stability::csv(cells))]
+    {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok(())
 }

@@ -67,6 +67,7 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
     options.speculation.speed_factor = w.speculative_factor.map_or(options.speculation.speed_factor, |x| x.0);
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
+    options.continuous_collision = w.continuous_collision.unwrap_or(options.continuous_collision);
     options.collision.reuse = w.contact_reuse.map_or(options.collision.reuse, |r| r.0);
     options.mass_matrix_reuse = w.mass_matrix_reuse.map_or(options.mass_matrix_reuse, |r| r.0);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);

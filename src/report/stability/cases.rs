@@ -1,13 +1,15 @@
 //! The hard cases of the stability report, one function per case (the scene and its
 //! measurement), and the scenes' helpers that tests use directly.
 
+use super::meter::{step, CaseError};
 use super::{options, Outcome, Setting};
 use crate::collision::MeshOptions;
 use crate::constraints::ContactParameters;
-use crate::math::{axis_angle, Mat3, Transform, Vec3};
+use crate::integrators::IntegratorKind;
+use crate::math::{axis_angle, exp3, Mat3, Transform, Vec3};
 use crate::model::{BodySpec, Joint, Model, ModelBuilder, RigidInertia, Shape, Suspension};
 use crate::scenes::{four_bar_world, free_body};
-use crate::world::{StepError, World, WorldOptions};
+use crate::world::{integrator_name, StepError, World, WorldOptions};
 use nalgebra::{DVector, UnitQuaternion};
 
 pub(super) fn steps(duration: f64, dt: f64) -> usize {
@@ -48,27 +50,44 @@ pub(super) fn ground(options: WorldOptions, normal: Vec3) -> Result<World, StepE
     Ok(w)
 }
 
-/// Steps a world whose `watched` multibody should stay put: the largest displacement of its
-/// origin from the start (m) and the deepest penetration seen (m).
-pub(super) fn hold(w: &mut World, watched: usize, n: usize) -> Result<(f64, f64), StepError> {
-    let start = position(w, watched);
-    let (mut drift, mut depth) = (0.0f64, 0.0f64);
-    for _ in 0..n {
-        depth = depth.max(w.step()?.max_penetration);
-        drift = drift.max((position(w, watched) - start).norm());
-    }
-    Ok((drift, depth))
+/// What [`hold`] measured: the largest displacement of the watched body's origin from the start
+/// (m), the deepest penetration seen (m), and the steps whose solver chain fell back (an
+/// earlier solver's answer failed its check) out of the steps taken.
+pub(super) struct Held {
+    drift: f64,
+    depth: f64,
+    fallbacks: usize,
+    steps: usize,
 }
 
-pub(super) fn held(drift: f64, depth: f64, margin: f64, size: f64) -> Outcome {
+/// Steps a world whose `watched` multibody should stay put for `n` steps.
+pub(super) fn hold(w: &mut World, watched: usize, n: usize) -> Result<Held, CaseError> {
+    let start = position(w, watched);
+    let mut held = Held { drift: 0.0, depth: 0.0, fallbacks: 0, steps: n };
+    for _ in 0..n {
+        let stats = step(w)?;
+        held.depth = held.depth.max(stats.max_penetration);
+        held.fallbacks += usize::from(!stats.fallbacks.is_empty());
+        held.drift = held.drift.max((position(w, watched) - start).norm());
+    }
+    Ok(held)
+}
+
+/// The verdict on a held pile: drift below 1 % of `size`, penetration below `margin`, and with
+/// the default chain at most 1 % of the steps falling back.
+pub(super) fn held(setting: &Setting, held: &Held, margin: f64, size: f64) -> Outcome {
+    let Held { drift, depth, fallbacks, steps } = *held;
+    let fallback_share = fallbacks as f64 / steps.max(1) as f64;
     Outcome {
         figure: drift,
-        pass: drift < 0.01 * size && depth < margin,
-        detail: format!("penetration {depth:.2e} m (margin {margin} m)"),
+        pass: drift < 0.01 * size && depth < margin && (!setting.default_chain || fallback_share <= 0.01),
+        detail: format!(
+            "penetration {depth:.2e} m (margin {margin} m), fallbacks in {fallbacks} of {steps} steps"
+        ),
     }
 }
 
-pub(super) fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepError> {
+pub(super) fn stack(setting: &Setting, count: usize) -> Result<Outcome, CaseError> {
     let side = 0.1;
     let o = options(setting);
     let margin = o.collision.margin;
@@ -78,19 +97,19 @@ pub(super) fn stack(setting: &Setting, count: usize) -> Result<Outcome, StepErro
         top = add(&mut w, &format!("box{k}"), cube(side, 1.0))?;
         place(&mut w, top, Vec3::new(0.0, 0.0, side / 2.0 + side * k as f64), UnitQuaternion::identity());
     }
-    let (drift, depth) = hold(&mut w, top, steps(10.0, setting.dt))?;
-    Ok(held(drift, depth, margin, side))
+    let pile = hold(&mut w, top, steps(10.0, setting.dt))?;
+    Ok(held(setting, &pile, margin, side))
 }
 
-pub(super) fn stack10(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn stack10(setting: &Setting) -> Result<Outcome, CaseError> {
     stack(setting, 10)
 }
 
-pub(super) fn stack20(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn stack20(setting: &Setting) -> Result<Outcome, CaseError> {
     stack(setting, 20)
 }
 
-pub(super) fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn pyramid10(setting: &Setting) -> Result<Outcome, CaseError> {
     let (side, gap) = (0.1, 0.002);
     let o = options(setting);
     let margin = o.collision.margin;
@@ -103,11 +122,11 @@ pub(super) fn pyramid10(setting: &Setting) -> Result<Outcome, StepError> {
             place(&mut w, top, Vec3::new(x, 0.0, side / 2.0 + side * row as f64), UnitQuaternion::identity());
         }
     }
-    let (drift, depth) = hold(&mut w, top, steps(2.0, setting.dt))?;
-    Ok(held(drift, depth, margin, side))
+    let pile = hold(&mut w, top, steps(10.0, setting.dt))?;
+    Ok(held(setting, &pile, margin, side))
 }
 
-pub(super) fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn heavy_on_light(setting: &Setting) -> Result<Outcome, CaseError> {
     let side = 0.1;
     let o = options(setting);
     let margin = o.collision.margin;
@@ -116,11 +135,11 @@ pub(super) fn heavy_on_light(setting: &Setting) -> Result<Outcome, StepError> {
     place(&mut w, light, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
     let heavy = add(&mut w, "heavy", cube(side, 1000.0))?;
     place(&mut w, heavy, Vec3::new(0.0, 0.0, 1.5 * side), UnitQuaternion::identity());
-    let (drift, depth) = hold(&mut w, heavy, steps(5.0, setting.dt))?;
-    Ok(held(drift, depth, margin, side))
+    let pile = hold(&mut w, heavy, steps(10.0, setting.dt))?;
+    Ok(held(setting, &pile, margin, side))
 }
 
-pub(super) fn cradle(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn cradle(setting: &Setting) -> Result<Outcome, CaseError> {
     // Five balls in a row without gravity: four touching, the first 5 cm away at 1 m/s, so
     // that its impact meets the touching four at once (a simultaneous impact).
     let mut o = options(setting);
@@ -138,7 +157,7 @@ pub(super) fn cradle(setting: &Setting) -> Result<Outcome, StepError> {
     let (p0, e0) = (w.linear_momentum(), w.total_energy());
     let (mut dp, mut de) = (0.0f64, f64::NEG_INFINITY);
     for _ in 0..steps(0.5, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         dp = dp.max((w.linear_momentum() - p0).norm());
         de = de.max((w.total_energy() - e0) / e0);
     }
@@ -206,7 +225,7 @@ pub(super) fn flip_period(crossings: &[f64]) -> Option<f64> {
         .then(|| 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64)
 }
 
-pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, CaseError> {
     let inertia = t_body_inertia();
     let omega0 = Vec3::new(10.0, 1.0, 0.0);
     let duration = 10.0;
@@ -219,22 +238,34 @@ pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
         free_body("T", Shape::Sphere { radius: 0.01 }, RigidInertia::new(2.0, Vec3::zeros(), inertia)),
     )?;
     w.multibody_mut(m).state.v.rows_mut(3, 3).copy_from(&omega0);
-    let angular = |w: &World| -> (Vec3, f64, f64) {
+    // Angular momentum (world axes) at the end of the step and at the step's midpoint
+    // orientation, the energy and ω_x. The velocity-level step moves the rotation with the
+    // velocity at the end of the step (q₁ = q₀ ⊕ h v₁), so v₁ is the velocity over the step
+    // and its momentum belongs to the orientation halfway through it, R₁ exp(−h ω₁/2); a
+    // smooth step's velocity and orientation are at the same instant.
+    let angular = |w: &World| -> (Vec3, Vec3, f64, f64) {
         let s = &w.multibody(m).state;
         let omega: Vec3 = s.v.fixed_rows::<3>(3).into();
-        (rotation(&s.q) * (inertia * omega), 0.5 * omega.dot(&(inertia * omega)), omega.x)
+        let (r, momentum) = (rotation(&s.q), inertia * omega);
+        let midpoint = r * (exp3(&(omega * (-0.5 * setting.dt))) * momentum);
+        (r * momentum, midpoint, 0.5 * omega.dot(&momentum), omega.x)
     };
-    let (l0, e0, _) = angular(&w);
-    let (mut dl, mut de) = (0.0f64, 0.0f64);
+    let (l0, _, e0, _) = angular(&w);
+    let (mut dl, mut dl_end, mut de, mut rise, mut previous) = (0.0f64, 0.0f64, 0.0f64, 0.0f64, e0);
     let mut crossings = Vec::new();
     let mut last = omega0.x;
     let mut schemes: Vec<&'static str> = Vec::new();
     for k in 0..steps(duration, setting.dt) {
-        w.step()?;
-        note_scheme(&mut schemes, w.stats().integrator);
-        let (l, e, wx) = angular(&w);
+        step(&mut w)?;
+        let scheme = w.stats().integrator;
+        note_scheme(&mut schemes, scheme);
+        let (l_end, l_mid, e, wx) = angular(&w);
+        let l = if scheme == integrator_name(&IntegratorKind::SemiImplicitEuler) { l_mid } else { l_end };
         dl = dl.max((l - l0).norm() / l0.norm());
+        dl_end = dl_end.max((l_end - l0).norm() / l0.norm());
         de = de.max((e - e0).abs() / e0);
+        rise = rise.max((e - previous) / e0);
+        previous = e;
         if wx.signum() != last.signum() {
             crossings.push((k as f64 + last / (last - wx)) * setting.dt);
         }
@@ -247,11 +278,18 @@ pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
         _ => f64::INFINITY,
     };
     let figure = dl.max(de);
+    let pass = if setting.integrator == IntegratorKind::SemiImplicitEuler {
+        // The velocity-level step: the energy never grows (beyond round-off), the momentum stays
+        // within 1e-2 and the flip keeps its period within 5 %.
+        rise <= DZHANIBEKOV_ROUND_OFF && dl <= 1e-2 && period_error <= 0.05
+    } else {
+        figure < 1e-6 && period_error < 0.01
+    };
     Ok(Outcome {
         figure,
-        pass: figure < 1e-6 && period_error < 0.01,
+        pass,
         detail: format!(
-            "|ΔL|/L {dl:.1e}, |ΔE|/E {de:.1e}, flip period {} s vs {} s (error {period_error:.1e}); steps: {}",
+            "|ΔL|/L {dl:.1e} (at the end of the step {dl_end:.1e}), |ΔE|/E {de:.1e}, largest rise of E in a step {rise:.1e} of E₀, flip period {} s vs {} s (error {period_error:.1e}); steps: {}",
             period.map_or("none".into(), |p| format!("{p:.4}")),
             reference.map_or("none".into(), |p| format!("{p:.4}")),
             schemes.join(", "),
@@ -259,14 +297,18 @@ pub(super) fn dzhanibekov(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-pub(super) fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
+/// The largest rise of the kinetic energy in one step (relative to the initial energy) that
+/// the Dzhanibekov case counts as round-off rather than a gain.
+pub(super) const DZHANIBEKOV_ROUND_OFF: f64 = 1e-12;
+
+pub(super) fn four_bar(setting: &Setting) -> Result<Outcome, CaseError> {
     let (mut w, m) = four_bar_world(options(setting))?;
     let e0 = w.total_energy();
     let (mut closure, mut de, mut kinetic) = (0.0f64, 0.0f64, 0.0f64);
     let mut schemes: Vec<&'static str> = Vec::new();
     let mut scratch = crate::data::Data::new(w.multibody(m).model());
     for _ in 0..steps(10.0, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         note_scheme(&mut schemes, w.stats().integrator);
         closure = closure.max(w.constraint_violation());
         let e = w.total_energy();
@@ -277,9 +319,12 @@ pub(super) fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
         kinetic = kinetic.max(energy);
     }
     let relative = de / kinetic.max(f64::MIN_POSITIVE);
+    // The velocity-level step's loop impulses may dissipate up to 2 %; a smooth step keeps
+    // the energy to 1e-4.
+    let bound = if setting.integrator == IntegratorKind::SemiImplicitEuler { 0.02 } else { 1e-4 };
     Ok(Outcome {
         figure: closure,
-        pass: closure < 1e-8 && relative < 1e-4,
+        pass: closure < 1e-8 && relative < bound,
         detail: format!(
             "|ΔE| = {relative:.1e} of the largest kinetic energy ({kinetic:.3} J); steps: {}",
             schemes.join(", ")
@@ -287,7 +332,7 @@ pub(super) fn four_bar(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-pub(super) fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn suspension(setting: &Setting) -> Result<Outcome, CaseError> {
     let mass = 10.0;
     let mut worst = 0.0f64;
     let mut details = Vec::new();
@@ -311,7 +356,7 @@ pub(super) fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
         let rest = -mass * 9.81 / k;
         let mut amplitude = 0.0f64;
         for _ in 0..steps(2.0, setting.dt) {
-            w.step()?;
+            step(&mut w)?;
             amplitude = amplitude.max((w.multibody(m).state.q[0] - rest).abs());
         }
         let growth = amplitude / rest.abs();
@@ -327,7 +372,7 @@ pub(super) fn suspension(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-pub(super) fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn ramp5(setting: &Setting) -> Result<Outcome, CaseError> {
     let theta: f64 = 20f64.to_radians();
     let side = 0.1;
     let mus = [0.25, 0.33, 0.35, 0.40, 0.50];
@@ -349,7 +394,7 @@ pub(super) fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
     }
     let duration = 1.0;
     for _ in 0..steps(duration, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
     }
     let mut right = 0;
     let mut moved = Vec::new();
@@ -369,7 +414,7 @@ pub(super) fn ramp5(setting: &Setting) -> Result<Outcome, StepError> {
 
 /// A ball of radius 0.1 m released on a 20° incline with friction μ: the acceleration of its
 /// centre along the slope (m/s², least-squares fit of s(t) over 1 s) and the largest slip speed.
-pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), StepError> {
+pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), CaseError> {
     let theta: f64 = 20f64.to_radians();
     let mut o = options(setting);
     o.contact = ContactParameters { mu, ..Default::default() };
@@ -382,7 +427,7 @@ pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), StepErr
     let x0 = position(&w, m);
     let (mut normal_matrix, mut rhs, mut slip) = (Mat3::zeros(), Vec3::zeros(), 0.0f64);
     for k in 1..=steps(1.0, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         let t = k as f64 * setting.dt;
         let s = (position(&w, m) - x0).dot(&down);
         let basis = Vec3::new(1.0, t, 0.5 * t * t);
@@ -397,7 +442,7 @@ pub fn ball_on_incline(setting: &Setting, mu: f64) -> Result<(f64, f64), StepErr
     Ok((a, slip))
 }
 
-pub(super) fn rolling_ball(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn rolling_ball(setting: &Setting) -> Result<Outcome, CaseError> {
     let (a, slip) = ball_on_incline(setting, 0.3)?;
     let expected = 5.0 / 7.0 * 9.81 * 20f64.to_radians().sin();
     let error = (a - expected).abs() / expected;
@@ -410,7 +455,7 @@ pub(super) fn rolling_ball(setting: &Setting) -> Result<Outcome, StepError> {
 
 /// Distance (m) a 0.2 m box launched at `v0` m/s slides on the ground with μ = 0.5, and its
 /// largest height above its resting height while sliding (m: the convex relaxation's "hover").
-pub fn sliding_distance(setting: &Setting, v0: f64) -> Result<(f64, f64), StepError> {
+pub fn sliding_distance(setting: &Setting, v0: f64) -> Result<(f64, f64), CaseError> {
     let mut o = options(setting);
     o.contact = ContactParameters { mu: 0.5, ..Default::default() };
     let mut w = ground(o, Vec3::z())?;
@@ -418,19 +463,19 @@ pub fn sliding_distance(setting: &Setting, v0: f64) -> Result<(f64, f64), StepEr
     let m = add(&mut w, "box", cube(side, 1.0))?;
     place(&mut w, m, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
     for _ in 0..steps(0.05, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
     }
     let start = position(&w, m);
     w.multibody_mut(m).state.v[0] = v0;
     let mut hover = 0.0f64;
     for _ in 0..steps(3.0, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         hover = hover.max(position(&w, m).z - start.z);
     }
     Ok((position(&w, m).x - start.x, hover))
 }
 
-pub(super) fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn sliding_box(setting: &Setting) -> Result<Outcome, CaseError> {
     let v0 = 2.0;
     let (d, hover) = sliding_distance(setting, v0)?;
     let expected = v0 * v0 / (2.0 * 0.5 * 9.81);
@@ -442,14 +487,14 @@ pub(super) fn sliding_box(setting: &Setting) -> Result<Outcome, StepError> {
     })
 }
 
-pub(super) fn resting(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn resting(setting: &Setting) -> Result<Outcome, CaseError> {
     let mut w = ground(options(setting), Vec3::z())?;
     let side = 0.2;
     let m = add(&mut w, "box", cube(side, 1.0))?;
     place(&mut w, m, Vec3::new(0.0, 0.0, side / 2.0), UnitQuaternion::identity());
     let mut speed = 0.0f64;
     for _ in 0..steps(10.0, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         speed = speed.max(w.multibody(m).state.v.norm());
     }
     Ok(Outcome { figure: speed, pass: speed < 1e-6, detail: String::new() })
@@ -457,7 +502,7 @@ pub(super) fn resting(setting: &Setting) -> Result<Outcome, StepError> {
 
 /// A sphere of radius `r` (m) at `speed` m/s against a static wall `thickness` m thick (its
 /// near face 1 m ahead); whether it ends beyond the wall.
-pub fn tunnels(setting: &Setting, speed: f64, r: f64, thickness: f64) -> Result<bool, StepError> {
+pub fn tunnels(setting: &Setting, speed: f64, r: f64, thickness: f64) -> Result<bool, CaseError> {
     let mut o = options(setting);
     o.gravity = Vec3::zeros();
     o.contact = ContactParameters { mu: 0.0, ..Default::default() };
@@ -471,12 +516,12 @@ pub fn tunnels(setting: &Setting, speed: f64, r: f64, thickness: f64) -> Result<
     let m = add(&mut w, "ball", ball(r, 0.01))?;
     w.multibody_mut(m).state.v[0] = speed;
     for _ in 0..steps(0.05, setting.dt).max(2) {
-        w.step()?;
+        step(&mut w)?;
     }
     Ok(position(&w, m).x > 1.0 + thickness / 2.0)
 }
 
-pub(super) fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn fast_sphere(setting: &Setting) -> Result<Outcome, CaseError> {
     let (speed, r, thickness) = (100.0, 0.01, 0.02);
     let through = tunnels(setting, speed, r, thickness)?;
     let ratio = speed * setting.dt / (thickness + 2.0 * r);
@@ -491,7 +536,7 @@ pub(super) fn fast_sphere(setting: &Setting) -> Result<Outcome, StepError> {
 /// slides, then rolls; one contact, so the answer is unique — a box's four coplanar corners
 /// share friction non-uniquely, and 1e-10 m rounding at 1e6 m then picks another share). Its
 /// trajectory relative to the offset (position and quaternion per step).
-pub(super) fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, StepError> {
+pub(super) fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, CaseError> {
     let mut w = World::new(options(setting));
     w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::from_translation(offset), 0)?;
     let r = 0.1;
@@ -506,7 +551,7 @@ pub(super) fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, 
     }
     let mut out = Vec::new();
     for _ in 0..steps(1.0, setting.dt) {
-        w.step()?;
+        step(&mut w)?;
         let q = &w.multibody(m).state.q;
         let p = Vec3::new(q[0], q[1], q[2]) - offset;
         out.push([p.x, p.y, p.z, q[3], q[4], q[5], q[6]]);
@@ -514,7 +559,7 @@ pub(super) fn far_run(setting: &Setting, offset: Vec3) -> Result<Vec<[f64; 7]>, 
     Ok(out)
 }
 
-pub(super) fn far_origin(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn far_origin(setting: &Setting) -> Result<Outcome, CaseError> {
     let near = far_run(setting, Vec3::zeros())?;
     let far = far_run(setting, Vec3::repeat(1e6))?;
     let travel = near.iter().map(|s| Vec3::new(s[0], s[1], s[2] - near[0][2]).norm()).fold(0.0, f64::max);
@@ -544,7 +589,7 @@ pub fn state_hash(w: &World) -> u64 {
 
 /// Five boxes dropped tumbling onto the ground and onto each other: the state hash after 1000
 /// steps.
-pub fn tumbling_hash(setting: &Setting) -> Result<u64, StepError> {
+pub fn tumbling_hash(setting: &Setting) -> Result<u64, CaseError> {
     let mut w = ground(options(setting), Vec3::z())?;
     for k in 0..5 {
         let m = add(&mut w, &format!("box{k}"), cube(0.1, 0.5))?;
@@ -552,12 +597,12 @@ pub fn tumbling_hash(setting: &Setting) -> Result<u64, StepError> {
         place(&mut w, m, Vec3::new(0.03 * k as f64, -0.02 * k as f64, 0.08 + 0.12 * k as f64), r);
     }
     for _ in 0..1000 {
-        w.step()?;
+        step(&mut w)?;
     }
     Ok(state_hash(&w))
 }
 
-pub(super) fn determinism(setting: &Setting) -> Result<Outcome, StepError> {
+pub(super) fn determinism(setting: &Setting) -> Result<Outcome, CaseError> {
     let (a, b) = (tumbling_hash(setting)?, tumbling_hash(setting)?);
     Ok(Outcome { figure: f64::from(u8::from(a != b)), pass: a == b, detail: format!("hash {a:016x}") })
 }

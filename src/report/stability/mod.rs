@@ -1,20 +1,27 @@
 //! Numerical stability on hard cases: each [`Case`] is a scene plus a quantitative criterion,
-//! run through the [`crate::world::World`] with one solver and one time step (a [`Setting`])
-//! and returning the measured figure ([`Outcome`]). `tests/hard_cases.rs` asserts the criteria at chosen
-//! settings; [`run`] fills the table of every case × solver × dt that `gelenk report stability`
-//! writes as markdown and CSV — the same code measures both.
+//! run through the [`crate::world::World`] with the default solver chain or one solver alone and
+//! one time step (a [`Setting`]) and returning the measured figure ([`Outcome`]).
+//! `tests/hard_cases.rs` asserts the criteria at chosen settings; [`run`] fills the table of
+//! every case × column × dt that `gelenk report stability` writes as markdown and CSV — the same
+//! code measures both. Each cell's steps are timed and bounded by a wall-clock budget
+//! ([`measure`]).
 //!
 //! A setting also names the world's integrator ([`WorldOptions::integrator`]): the default,
 //! semi-implicit Euler, is the velocity-level step throughout; another scheme advances the
 //! steps without contact ([`crate::world::smooth`]). Two criteria of the issue need it: the
 //! Dzhanibekov spin (energy and angular momentum to 1e-6) and the four-bar's energy drift
-//! ([`SMOOTH_CASES`], which the report also runs with [`SMOOTH_INTEGRATORS`]). The 100-link chain
+//! (1e-4) hold with a smooth scheme ([`SMOOTH_CASES`], which the report also runs with
+//! [`SMOOTH_INTEGRATORS`]); the velocity-level step has its own bounds for them. The 100-link chain
 //! with a 1000:1 end mass (|ΔE/E| < 1e-6) is tested with RK4 outside the world, not a case.
 
 use crate::integrators::IntegratorKind;
-use crate::world::{integrator_name, SolverKind, StepError, WorldOptions};
+use crate::world::{integrator_name, SolverKind, WorldOptions};
+use std::time::Duration;
 
 mod cases;
+mod meter;
+
+pub use meter::{measure, CaseError, Meter};
 
 /// The four-bar linkage of [`crate::scenes::four_bar_world`].
 pub use crate::scenes::four_bar_world;
@@ -27,12 +34,16 @@ pub use cases::{
     tumbling_hash, tunnels,
 };
 
-/// One solver (alone in the chain, its answer always accepted), one time step and the world's
-/// integrator.
+/// One solver (alone in the chain, its answer always accepted) or the world's default solver
+/// chain, one time step and the world's integrator.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Setting {
-    /// The solver.
+    /// The solver (ignored with `default_chain`).
     pub solver: SolverKind,
+    /// The world's default solver chain, tolerance and fallback rule
+    /// ([`WorldOptions::default`]), the settings a user gets without choosing, instead of
+    /// `solver` alone.
+    pub default_chain: bool,
     /// Time step (s).
     pub dt: f64,
     /// The integrator of steps without contact ([`WorldOptions::integrator`]).
@@ -40,8 +51,11 @@ pub struct Setting {
 }
 
 impl Setting {
-    /// Short solver label: `lemke`, `clarabel`, `pgs10`, `pgs50`.
+    /// Short solver label: `default`, `lemke`, `clarabel`, `newton`, `pgs10`, `pgs50`.
     pub fn solver_label(&self) -> String {
+        if self.default_chain {
+            return "default".into();
+        }
         match self.solver {
             SolverKind::Lemke { .. } => "lemke".into(),
             SolverKind::Clarabel => "clarabel".into(),
@@ -53,7 +67,41 @@ impl Setting {
     /// The setting of `solver` and `dt` with the world's default integrator (semi-implicit
     /// Euler, the velocity-level step).
     pub fn new(solver: SolverKind, dt: f64) -> Self {
-        Self { solver, dt, integrator: IntegratorKind::SemiImplicitEuler }
+        Self { solver, default_chain: false, dt, integrator: IntegratorKind::SemiImplicitEuler }
+    }
+
+    /// The setting of the world's default solver chain and `dt` with the default integrator.
+    pub fn default_chain(dt: f64) -> Self {
+        let solver = WorldOptions::default().solvers[0];
+        Self { default_chain: true, ..Self::new(solver, dt) }
+    }
+
+    /// The setting of `column` and `dt` with the default integrator.
+    pub fn of(column: Column, dt: f64) -> Self {
+        match column {
+            Column::Default => Self::default_chain(dt),
+            Column::Solver(solver) => Self::new(solver, dt),
+        }
+    }
+}
+
+/// A column of the report: the world's default chain, or one solver alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Column {
+    /// The world's default solver chain ([`Setting::default_chain`]).
+    Default,
+    /// One solver alone, its answer always accepted.
+    Solver(SolverKind),
+}
+
+impl Column {
+    /// `default`, or a solver name ([`SolverKind::parse`]).
+    pub fn parse(name: &str) -> Option<Self> {
+        if name == "default" {
+            Some(Column::Default)
+        } else {
+            SolverKind::parse(name).map(Column::Solver)
+        }
     }
 }
 
@@ -70,6 +118,15 @@ pub const SOLVERS: [SolverKind; 4] = [
     SolverKind::Clarabel,
     SolverKind::Pgs { iterations: 10, omega: 1.0 },
     SolverKind::Pgs { iterations: 50, omega: 1.0 },
+];
+
+/// The columns of the report: the default chain, then [`SOLVERS`].
+pub const COLUMNS: [Column; 5] = [
+    Column::Default,
+    Column::Solver(SOLVERS[0]),
+    Column::Solver(SOLVERS[1]),
+    Column::Solver(SOLVERS[2]),
+    Column::Solver(SOLVERS[3]),
 ];
 
 /// The time steps of the report (s).
@@ -98,35 +155,35 @@ pub struct Case {
     /// Whether the report runs Lemke on the case (false: skipped as too slow).
     pub lemke: bool,
     /// Runs the case.
-    pub run: fn(&Setting) -> Result<Outcome, StepError>,
+    pub run: fn(&Setting) -> Result<Outcome, CaseError>,
 }
 
 /// Every case, in report order.
 pub const CASES: [Case; 15] = [
     Case {
         name: "stack10",
-        criterion: "10 boxes, 10 s: top drift < 1 % of the box (1 mm), penetration < margin",
+        criterion: "10 boxes, 10 s: top drift < 1 % of the box (1 mm), penetration < margin; default chain: ≤ 1 % of steps fall back",
         figure: "top drift (m)",
         lemke: true,
         run: stack10,
     },
     Case {
         name: "stack20",
-        criterion: "20 boxes, 10 s: top drift < 1 mm, penetration < margin",
+        criterion: "20 boxes, 10 s: top drift < 1 mm, penetration < margin; default chain: ≤ 1 % of steps fall back",
         figure: "top drift (m)",
         lemke: true,
         run: stack20,
     },
     Case {
         name: "pyramid10",
-        criterion: "pyramid of 55 boxes (base 10), 2 s: top drift < 1 mm, penetration < margin",
+        criterion: "pyramid of 55 boxes (base 10), 10 s: top drift < 1 mm, penetration < margin; default chain: ≤ 1 % of steps fall back",
         figure: "top drift (m)",
         lemke: true,
         run: pyramid10,
     },
     Case {
         name: "heavy_on_light",
-        criterion: "1000 kg box on a 1 kg box, 5 s: drift < 1 mm, penetration < margin",
+        criterion: "1000 kg box on a 1 kg box, 10 s: drift < 1 mm, penetration < margin; default chain: ≤ 1 % of steps fall back",
         figure: "top drift (m)",
         lemke: true,
         run: heavy_on_light,
@@ -140,14 +197,14 @@ pub const CASES: [Case; 15] = [
     },
     Case {
         name: "dzhanibekov",
-        criterion: "T-body at ω = (10, 1, 0) rad/s, 10 s: |ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 %",
+        criterion: "T-body at ω = (10, 1, 0) rad/s, 10 s: velocity-level step: energy never grows, |ΔL|/L ≤ 1e-2, flip period within 5 %; other integrators: |ΔL|/L and |ΔE|/E < 1e-6, flip period within 1 %",
         figure: "max(|ΔL|/L, |ΔE|/E)",
         lemke: true,
         run: dzhanibekov,
     },
     Case {
         name: "four_bar",
-        criterion: "four-bar, 10 s: closure < 1e-8 m, |ΔE| < 1e-4 of the largest kinetic energy",
+        criterion: "four-bar, 10 s: closure < 1e-8 m, |ΔE| < 2 % (velocity-level step) or 1e-4 (other integrators) of the largest kinetic energy",
         figure: "closure error (m)",
         lemke: true,
         run: four_bar,
@@ -216,18 +273,30 @@ pub fn case(name: &str) -> Option<&'static Case> {
 }
 
 /// World options of a setting: that solver alone (its answer accepted even above the
-/// tolerance, so that the cell measures the solver, not a fallback), sleeping off.
+/// tolerance, so that the cell measures the solver, not a fallback) or the default chain as a
+/// user gets it, sleeping off.
 pub fn options(setting: &Setting) -> WorldOptions {
-    let mut o = WorldOptions {
-        dt: setting.dt,
-        integrator: setting.integrator,
-        solvers: vec![setting.solver],
-        tolerance: 1e-8,
-        accept_last: true,
-        ..Default::default()
-    };
+    let mut o = WorldOptions { dt: setting.dt, integrator: setting.integrator, ..Default::default() };
+    if !setting.default_chain {
+        o.solvers = vec![setting.solver];
+        o.tolerance = 1e-8;
+        o.accept_last = true;
+    }
     o.sleep.enabled = false;
     o
+}
+
+/// What became of one cell.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CellOutcome {
+    /// The case ran: its figure and verdict.
+    Done(Outcome),
+    /// Not run (Lemke on the large problems, [`Case::lemke`]).
+    Skipped,
+    /// The cell's time budget was spent first (s).
+    Timeout(f64),
+    /// A step failed.
+    Error(String),
 }
 
 /// One cell of the report.
@@ -241,21 +310,25 @@ pub struct Cell {
     pub dt: f64,
     /// Integrator name (`semi-implicit-euler`, `rk4`, ...).
     pub integrator: &'static str,
-    /// The outcome, `None` when skipped (Lemke on large problems), or the step error.
-    pub outcome: Option<Result<Outcome, String>>,
+    /// What became of the cell.
+    pub outcome: CellOutcome,
     /// Wall-clock seconds the cell took.
     pub seconds: f64,
+    /// Its steps and the time spent in them.
+    pub meter: Meter,
 }
 
-/// Runs `cases` for every solver of `solvers`, time step of `dts` and integrator of
+/// Runs `cases` for every column of `columns`, time step of `dts` and integrator of
 /// `integrators` (a case outside [`SMOOTH_CASES`] only with the first integrator: its steps
-/// have contacts, which the velocity-level step handles whatever the integrator), calling
+/// have contacts, which the velocity-level step handles whatever the integrator), each cell
+/// within `budget` of wall-clock time if given ([`CellOutcome::Timeout`] past it), calling
 /// `progress` after each cell.
 pub fn run(
     cases: &[Case],
-    solvers: &[SolverKind],
+    columns: &[Column],
     dts: &[f64],
     integrators: &[IntegratorKind],
+    budget: Option<Duration>,
     mut progress: impl FnMut(&Cell),
 ) -> Vec<Cell> {
     let mut cells = Vec::new();
@@ -266,13 +339,22 @@ pub fn run(
             &integrators[..1.min(integrators.len())]
         };
         for &dt in dts {
-            for (&solver, &integrator) in used.iter().flat_map(|i| solvers.iter().map(move |s| (s, i))) {
-                let setting = Setting { solver, dt, integrator };
+            for (&column, &integrator) in used.iter().flat_map(|i| columns.iter().map(move |c| (c, i))) {
+                let setting = Setting { integrator, ..Setting::of(column, dt) };
                 let start = std::time::Instant::now();
-                let outcome = if matches!(solver, SolverKind::Lemke { .. }) && !case.lemke {
-                    None
+                let skipped = !setting.default_chain
+                    && matches!(setting.solver, SolverKind::Lemke { .. })
+                    && !case.lemke;
+                let (outcome, meter) = if skipped {
+                    (CellOutcome::Skipped, Meter::default())
                 } else {
-                    Some((case.run)(&setting).map_err(|e| e.to_string()))
+                    let (result, meter) = measure(budget, || (case.run)(&setting));
+                    let outcome = match result {
+                        Ok(o) => CellOutcome::Done(o),
+                        Err(CaseError::Timeout { budget }) => CellOutcome::Timeout(budget),
+                        Err(e) => CellOutcome::Error(e.to_string()),
+                    };
+                    (outcome, meter)
                 };
                 let cell = Cell {
                     case: case.name,
@@ -281,6 +363,7 @@ pub fn run(
                     integrator: integrator_name(&integrator),
                     outcome,
                     seconds: start.elapsed().as_secs_f64(),
+                    meter,
                 };
                 progress(&cell);
                 cells.push(cell);
@@ -294,11 +377,25 @@ fn dt_label(dt: f64) -> String {
     format!("1/{}", (1.0 / dt).round())
 }
 
-fn cell_text(cell: &Cell) -> String {
+/// The text of a cell in the table: the verdict, the figure and the cost of a step (µs).
+pub fn cell_text(cell: &Cell) -> String {
+    let cost = cell.meter.micros_per_step().map_or(String::new(), |us| format!(" ({})", micros(us)));
     match &cell.outcome {
-        None => "skipped".into(),
-        Some(Err(_)) => "error".into(),
-        Some(Ok(o)) => format!("{} {:.2e}", if o.pass { "pass" } else { "FAIL" }, o.figure),
+        CellOutcome::Skipped => "skipped".into(),
+        CellOutcome::Error(_) => format!("error{cost}"),
+        CellOutcome::Timeout(_) => format!("timeout{cost}"),
+        CellOutcome::Done(o) => format!("{} {:.2e}{cost}", if o.pass { "pass" } else { "FAIL" }, o.figure),
+    }
+}
+
+/// A cost in µs with three significant digits at most.
+fn micros(us: f64) -> String {
+    if us >= 100.0 {
+        format!("{us:.0} µs")
+    } else if us >= 10.0 {
+        format!("{us:.1} µs")
+    } else {
+        format!("{us:.2} µs")
     }
 }
 
@@ -341,6 +438,9 @@ pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
             texts.join(" | ")
         );
     }
+    out += "\nEach cell: pass or FAIL, the figure, and the mean wall-clock cost of one step (µs, \
+            World::step alone); `default` is the chain a user gets without choosing \
+            (WorldOptions::default()), the other columns one solver alone.\n";
     out += "\nCriteria (the figure in each cell):\n\n";
     for case in cases {
         if cells.iter().any(|c| c.case == case.name) {
@@ -350,9 +450,10 @@ pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
     out += "\nDetails:\n\n";
     for c in cells {
         let detail = match &c.outcome {
-            Some(Ok(o)) => o.detail.clone(),
-            Some(Err(e)) => format!("error: {e}"),
-            None => String::new(),
+            CellOutcome::Done(o) => o.detail.clone(),
+            CellOutcome::Error(e) => format!("error: {e}"),
+            CellOutcome::Timeout(budget) => format!("timeout after {budget} s ({} steps)", c.meter.steps),
+            CellOutcome::Skipped => String::new(),
         };
         if !detail.is_empty() {
             out += &format!("- {} {} dt {} {}: {}\n", c.case, c.solver, dt_label(c.dt), c.integrator, detail);
@@ -361,18 +462,23 @@ pub fn markdown(cells: &[Cell], cases: &[Case]) -> String {
     out
 }
 
-/// The report as CSV: `case,solver,dt,integrator,pass,figure,seconds,detail` (pass is
-/// `skipped` or `error` when the cell did not run).
+/// The report as CSV: `case,solver,dt,integrator,pass,figure,seconds,steps,us_per_step,detail`
+/// (pass is `skipped`, `timeout` or `error` when the cell has no verdict; `seconds` the whole
+/// cell, `us_per_step` the mean cost of a step).
 pub fn csv(cells: &[Cell]) -> String {
-    let mut out = String::from("case,solver,dt,integrator,pass,figure,seconds,detail\n");
+    let mut out = String::from("case,solver,dt,integrator,pass,figure,seconds,steps,us_per_step,detail\n");
     for c in cells {
         let (pass, figure, detail) = match &c.outcome {
-            None => ("skipped".to_string(), String::new(), String::new()),
-            Some(Err(e)) => ("error".to_string(), String::new(), e.clone()),
-            Some(Ok(o)) => (o.pass.to_string(), format!("{:e}", o.figure), o.detail.clone()),
+            CellOutcome::Skipped => ("skipped".to_string(), String::new(), String::new()),
+            CellOutcome::Error(e) => ("error".to_string(), String::new(), e.clone()),
+            CellOutcome::Timeout(budget) => {
+                ("timeout".to_string(), String::new(), format!("budget {budget} s"))
+            }
+            CellOutcome::Done(o) => (o.pass.to_string(), format!("{:e}", o.figure), o.detail.clone()),
         };
+        let cost = c.meter.micros_per_step().map_or(String::new(), |us| format!("{us:.3}"));
         out += &format!(
-            "{},{},{},{},{},{},{:.3},\"{}\"\n",
+            "{},{},{},{},{},{},{:.3},{},{},\"{}\"\n",
             c.case,
             c.solver,
             c.dt,
@@ -380,6 +486,8 @@ pub fn csv(cells: &[Cell]) -> String {
             pass,
             figure,
             c.seconds,
+            c.meter.steps,
+            cost,
             detail.replace('"', "'")
         );
     }
