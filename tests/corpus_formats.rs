@@ -5,8 +5,8 @@
 //! to the same optimum), and bad files are typed errors naming the file and the field.
 
 use gelenk::io::problem::{
-    cbf_of, cbf_text, parse_cbf, parse_qps, problem_from_json, problem_to_json_sparse, qp_of, qps_text, read_cbf,
-    read_meta, read_problem, read_qps, solve_cbf_with_clarabel, ProblemFileError, QpForm,
+    cbf_of, cbf_text, parse_cbf, parse_qps, problem_from_json, problem_to_json_sparse, qp_of, qps_text,
+    read_cbf, read_meta, read_problem, read_qps, solve_cbf_with_clarabel, ProblemFileError, QpForm,
 };
 use std::path::{Path, PathBuf};
 
@@ -29,7 +29,8 @@ fn same_qp(a: &QpForm, b: &QpForm) {
 }
 
 const CONE_PROBLEMS: [&str; 3] = ["stack2-cone-0000", "box-drop-cone-0015", "sphere-incline-cone-0030"];
-const QP_PROBLEMS: [&str; 4] = ["stack2-pyramid4-0004", "box-flat-0000", "four-bar-0050", "limit-pendulum-0020"];
+const QP_PROBLEMS: [&str; 4] =
+    ["stack2-pyramid4-0004", "box-flat-0000", "four-bar-0050", "limit-pendulum-0020"];
 
 #[test]
 fn cbf_files_round_trip_and_pose_the_problem() {
@@ -45,7 +46,10 @@ fn cbf_files_round_trip_and_pose_the_problem() {
         let (optimum, x) = solve_cbf_with_clarabel(&back).unwrap();
         let reference = read_meta(&dir).unwrap().solutions["clarabel"].objective.unwrap();
         let scale = 1.0 + reference.abs();
-        assert!((optimum - reference).abs() <= 1e-6 * scale, "{name}: CBF optimum {optimum}, reference {reference}");
+        assert!(
+            (optimum - reference).abs() <= 1e-6 * scale,
+            "{name}: CBF optimum {optimum}, reference {reference}"
+        );
         assert_eq!(x.len(), problem.rows() + 1);
     }
 }
@@ -105,25 +109,49 @@ fn bad_cbf_and_qps_files_are_typed_errors_naming_the_file_and_the_field() {
     let path = Path::new("bad.cbf");
     invalid(parse_cbf(&cbf[..cbf.len() / 2], path), "bad.cbf", "line ");
     invalid(parse_cbf(&cbf.replacen("L+", "L*", 1), path), "bad.cbf", "unknown cone \"L*\"");
-    invalid(parse_cbf(&cbf.replacen("ACOORD\n", "ACOORD\n1\n99999 0 1.0\n", 1), path), "bad.cbf", "ACOORD: entry (99999, 0)");
-    invalid(parse_cbf(&cbf.replacen("BCOORD\n", "BCOORD\n1\n0 nan\n", 1), path), "bad.cbf", "BCOORD: \"nan\"");
+    invalid(
+        parse_cbf(&cbf.replacen("\nACOORD\n", "\nACOORD\n1\n99999 0 1.0\n", 1), path),
+        "bad.cbf",
+        "ACOORD: entry (99999, 0)",
+    );
+    invalid(
+        parse_cbf(&cbf.replacen("\nBCOORD\n", "\nBCOORD\n1\n0 nan\n", 1), path),
+        "bad.cbf",
+        "BCOORD: \"nan\"",
+    );
     invalid(parse_cbf("VAR\n1 1\nF 2\n", path), "bad.cbf", "VAR: the cones hold 2 entries");
     invalid(parse_cbf("", path), "bad.cbf", "no VER section");
     let qps = qps_text("p", &qp_of(&problem).unwrap());
     let path = Path::new("bad.qps");
     invalid(parse_qps(&qps[..qps.len() / 2], path), "bad.qps", "no ENDATA");
     invalid(parse_qps(&qps.replacen(" g0 ", " nosuchrow ", 1), path), "bad.qps", "unknown row \"nosuchrow\"");
-    invalid(parse_qps(&qps.replacen("UP bnd", "XX bnd", 1), path), "bad.qps", "is not FR, MI, PL, LO, UP or FX");
-    invalid(parse_qps(&qps.replacen("QUADOBJ", "RANGES", 1), path), "bad.qps", "section RANGES is not supported");
+    invalid(
+        parse_qps(&qps.replacen("UP bnd", "XX bnd", 1), path),
+        "bad.qps",
+        "is not FR, MI, PL, LO, UP or FX",
+    );
+    invalid(
+        parse_qps(&qps.replacen("QUADOBJ", "RANGES", 1), path),
+        "bad.qps",
+        "section RANGES is not supported",
+    );
     assert!(matches!(read_cbf(Path::new("/no/such/file.cbf")), Err(ProblemFileError::Read { .. })));
     // Sparse JSON: an entry outside A, a non-symmetric A, a negative μ.
     let json = problem_to_json_sparse(&problem).unwrap();
     let path = Path::new("bad.json");
-    invalid(problem_from_json(&json.replacen("[0,0,", "[0,999,", 1), path), "bad.json", "\"delassus_entries\": entry (0, 999)");
+    invalid(
+        problem_from_json(&json.replacen("[0,0,", "[0,999,", 1), path),
+        "bad.json",
+        "\"delassus_entries\": entry (0, 999)",
+    );
     let mut skew: serde_json::Value = serde_json::from_str(&json).unwrap();
     let entries = skew["delassus_entries"].as_array_mut().unwrap();
     let off = entries.iter().position(|e| e[0] != e[1]).unwrap();
     entries[off][2] = serde_json::json!(1e3);
     invalid(problem_from_json(&skew.to_string(), path), "bad.json", "A is not symmetric");
-    invalid(problem_from_json(&json.replacen("\"mu\":", "\"mu\":-1.0,\"x\":", 1), path), "bad.json", "must be finite and ≥ 0");
+    invalid(
+        problem_from_json(&json.replacen("\"mu\":", "\"mu\":-1.0,\"x\":", 1), path),
+        "bad.json",
+        "must be finite and ≥ 0",
+    );
 }

@@ -95,14 +95,20 @@ fn convert(args: &ConvertArgs) -> Result<(), String> {
     match extension {
         "cbf" => problem::write_cbf(out, &problem).map_err(|e| e.to_string())?,
         "qps" => {
-            let qp = problem::qp_of(&problem)
-                .ok_or_else(|| format!("{}: the problem has friction cones: no QP form", args.problem.display()))?;
-            let name = out.file_stem().and_then(|s| s.to_str()).unwrap_or("problem").replace(char::is_whitespace, "_");
+            let qp = problem::qp_of(&problem).ok_or_else(|| {
+                format!("{}: the problem has friction cones: no QP form", args.problem.display())
+            })?;
+            let name = out
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("problem")
+                .replace(char::is_whitespace, "_");
             problem::write_qps(out, &name, &qp).map_err(|e| e.to_string())?;
         }
         #[cfg(feature = "fclib")]
         "hdf5" | "h5" => {
-            let local = problem::fclib_of(&problem).map_err(|e| format!("{}: {e}", args.problem.display()))?;
+            let local =
+                problem::fclib_of(&problem).map_err(|e| format!("{}: {e}", args.problem.display()))?;
             problem::write_fclib(out, &local).map_err(|e| e.to_string())?;
         }
         #[cfg(not(feature = "fclib"))]
@@ -114,8 +120,12 @@ fn convert(args: &ConvertArgs) -> Result<(), String> {
 }
 
 fn build(args: &BuildArgs) -> Result<(), String> {
-    let options =
-        BuildOptions { out: args.out.clone(), models: args.models.clone(), only: args.only.clone(), min_rows: args.min_rows };
+    let options = BuildOptions {
+        out: args.out.clone(),
+        models: args.models.clone(),
+        only: args.only.clone(),
+        min_rows: args.min_rows,
+    };
     let summary = problem::build_corpus(&options, |e: &IndexEntry| {
         println!(
             "{}: {} rows, {}, reference {} {:.1e} m/s",
@@ -140,8 +150,11 @@ fn build(args: &BuildArgs) -> Result<(), String> {
 
 fn bench(args: &BenchArgs) -> Result<(), String> {
     let solvers: Vec<BenchSolver> = args.solvers.iter().map(|s| s.parse()).collect::<Result<_, _>>()?;
-    let options =
-        BenchOptions { pgs_sweeps: args.pgs_sweeps, lemke_max_rows: args.lemke_max_rows, time_limit: args.time_limit };
+    let options = BenchOptions {
+        pgs_sweeps: args.pgs_sweeps,
+        lemke_max_rows: args.lemke_max_rows,
+        time_limit: args.time_limit,
+    };
     let index = problem::read_index(&args.dir).map_err(|e| e.to_string())?;
     let chosen: Vec<&IndexEntry> = index
         .iter()

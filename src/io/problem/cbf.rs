@@ -257,8 +257,8 @@ fn domains(lines: &mut Lines<'_>, what: &str) -> Result<Vec<(CbfCone, usize)>, S
     let mut list = Vec::new();
     for _ in 0..count {
         let [name, len] = lines.fields::<2>(what)?;
-        let cone =
-            CbfCone::parse(name).ok_or_else(|| format!("line {}: {what}: unknown cone \"{name}\"", lines.line))?;
+        let cone = CbfCone::parse(name)
+            .ok_or_else(|| format!("line {}: {what}: unknown cone \"{name}\"", lines.line))?;
         list.push((cone, lines.int(len, what)?));
     }
     let sum: usize = list.iter().map(|c| c.1).sum();

@@ -35,7 +35,8 @@ pub enum BenchSolver {
 
 impl BenchSolver {
     /// Every solver.
-    pub const ALL: [BenchSolver; 4] = [BenchSolver::Clarabel, BenchSolver::Pgs, BenchSolver::Newton, BenchSolver::Lemke];
+    pub const ALL: [BenchSolver; 4] =
+        [BenchSolver::Clarabel, BenchSolver::Pgs, BenchSolver::Newton, BenchSolver::Lemke];
 
     /// Its name.
     pub fn name(self) -> &'static str {
@@ -95,7 +96,13 @@ pub struct BenchRun {
 }
 
 /// Solves `problem` with `solver` and records the run.
-pub fn bench_run(id: &str, family: &str, problem: &ConstraintProblem, solver: BenchSolver, options: &BenchOptions) -> BenchRun {
+pub fn bench_run(
+    id: &str,
+    family: &str,
+    problem: &ConstraintProblem,
+    solver: BenchSolver,
+    options: &BenchOptions,
+) -> BenchRun {
     let mut run = BenchRun {
         id: id.to_string(),
         family: family.to_string(),
@@ -176,8 +183,10 @@ pub fn bench_table(runs: &[BenchRun], solvers: &[BenchSolver], time_limit: f64) 
     let mut rows = Vec::new();
     for family in families {
         for &solver in solvers {
-            let mine: Vec<&BenchRun> =
-                runs.iter().filter(|r| r.solver == solver && (family == "all" || r.family == family)).collect();
+            let mine: Vec<&BenchRun> = runs
+                .iter()
+                .filter(|r| r.solver == solver && (family == "all" || r.family == family))
+                .collect();
             if mine.is_empty() {
                 continue;
             }
@@ -231,7 +240,9 @@ pub fn bench_text(rows: &[BenchRow]) -> String {
 
 /// The table as CSV (times in seconds, rates as fractions).
 pub fn bench_csv(rows: &[BenchRow]) -> String {
-    let mut s = String::from("family,solver,problems,success_1e-3,success_1e-6,success_1e-9,time_sgm_s,worst_residual,failed\n");
+    let mut s = String::from(
+        "family,solver,problems,success_1e-3,success_1e-6,success_1e-9,time_sgm_s,worst_residual,failed\n",
+    );
     for r in rows {
         s.push_str(&format!(
             "{},{},{},{},{},{},{:e},{},{}\n",

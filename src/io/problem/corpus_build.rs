@@ -9,8 +9,8 @@
 
 use super::corpus_scenes::{corpus_scenes, corpus_world, CorpusScene};
 use super::{
-    formulation, problem_to_json_sparse, qp_of, run_solver, write_cbf, write_qps, CorpusSolver, ResidualRecord,
-    SolveStatus, CBF_MAX_ROWS,
+    formulation, problem_to_json_sparse, qp_of, run_solver, write_cbf, write_qps, CorpusSolver,
+    ResidualRecord, SolveStatus, CBF_MAX_ROWS,
 };
 use super::{pivoted_cholesky, qp_matrix};
 use crate::constraints::{ConstraintProblem, RowLaw};
@@ -202,7 +202,8 @@ fn write_entry(
     #[cfg(feature = "fclib")]
     if let Ok(mut local) = super::fclib_of(problem) {
         if reference.exact <= REFERENCE_TOLERANCE {
-            local.solution = Some((DVector::from_vec(reference.w.clone()), DVector::from_vec(reference.lambda.clone())));
+            local.solution =
+                Some((DVector::from_vec(reference.w.clone()), DVector::from_vec(reference.lambda.clone())));
         }
         super::write_fclib(&dir.join("problem.hdf5"), &local).map_err(|e| e.to_string())?;
         files.push("problem.hdf5".into());
@@ -265,13 +266,20 @@ pub fn index_csv(entries: &[IndexEntry]) -> String {
 pub fn read_index(root: &Path) -> Result<Vec<IndexEntry>, super::ProblemFileError> {
     let path = root.join(format!("{INDEX_FILE}.json"));
     let text = super::read_text(&path)?;
-    serde_json::from_str(&text).map_err(|source| super::ProblemFileError::Parse { path, what: "corpus index", source })
+    serde_json::from_str(&text).map_err(|source| super::ProblemFileError::Parse {
+        path,
+        what: "corpus index",
+        source,
+    })
 }
 
 /// Builds the corpus (see the module documentation); `progress` is called after each problem
 /// written. Stops at the first scene that cannot be loaded or stepped, or file that cannot be
 /// written.
-pub fn build_corpus(options: &BuildOptions, mut progress: impl FnMut(&IndexEntry)) -> Result<BuildSummary, String> {
+pub fn build_corpus(
+    options: &BuildOptions,
+    mut progress: impl FnMut(&IndexEntry),
+) -> Result<BuildSummary, String> {
     let start = Instant::now();
     let mut summary = BuildSummary::default();
     let scenes: Vec<CorpusScene> = corpus_scenes()
@@ -282,7 +290,8 @@ pub fn build_corpus(options: &BuildOptions, mut progress: impl FnMut(&IndexEntry
         return Err(format!("no corpus scene is named {}", options.only.join(", ")));
     }
     for scene in &scenes {
-        let mut world = corpus_world(&scene.source, &options.models).map_err(|e| format!("{}: {e}", scene.name))?;
+        let mut world =
+            corpus_world(&scene.source, &options.models).map_err(|e| format!("{}: {e}", scene.name))?;
         for step in 0..scene.steps {
             let w = world.prepare().map_err(|e| format!("{} step {step}: {e}", scene.name))?;
             let h = w.options().dt;

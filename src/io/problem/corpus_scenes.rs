@@ -90,9 +90,9 @@ pub fn corpus_scenes() -> Vec<CorpusScene> {
     let (slow, fast) = (1.0 / 60.0, 1.0 / 1000.0);
     vec![
         s("box", "box-flat", SceneSource::BuiltIn("box-flat", FrictionModel::Cone), 60, 3),
-        s("box", "box-drop", SceneSource::BuiltIn("box-drop", FrictionModel::Cone), 150, 4),
-        s("stack", "stack2-cone", SceneSource::BuiltIn("stack2", FrictionModel::Cone), 60, 2),
-        s("stack", "stack2-pyramid4", SceneSource::BuiltIn("stack2", pyramid4), 60, 2),
+        s("box", "box-drop", SceneSource::BuiltIn("box-drop", FrictionModel::Cone), 150, 2),
+        s("stack", "stack2-cone", SceneSource::BuiltIn("stack2", FrictionModel::Cone), 60, 1),
+        s("stack", "stack2-pyramid4", SceneSource::BuiltIn("stack2", pyramid4), 60, 1),
         s("stack", "stack10-cone", SceneSource::BuiltIn("stack10", FrictionModel::Cone), 60, 3),
         s("stack", "stack10-pyramid4", SceneSource::BuiltIn("stack10", pyramid4), 60, 3),
         s("hard", "stack10-dt60", SceneSource::Stack { count: 10, dt: slow }, 60, 3),
@@ -103,11 +103,11 @@ pub fn corpus_scenes() -> Vec<CorpusScene> {
         s("hard", "pyramid10-dt1000", SceneSource::Pyramid { dt: fast }, 200, 10),
         s("hard", "heavy-on-light-dt60", SceneSource::HeavyOnLight { dt: slow }, 60, 3),
         s("hard", "heavy-on-light-dt1000", SceneSource::HeavyOnLight { dt: fast }, 200, 10),
-        s("pile", "pile", SceneSource::File("pile.toml"), 600, 15),
-        s("ragdoll", "ragdoll-fall", SceneSource::File("ragdoll_fall.toml"), 1000, 25),
+        s("pile", "pile", SceneSource::File("pile.toml"), 600, 10),
+        s("ragdoll", "ragdoll-fall", SceneSource::File("ragdoll_fall.toml"), 1000, 15),
         s("ragdoll-crowd", "ragdoll-pile", SceneSource::File("ragdoll_pile.toml"), 2000, 50),
         s("humanoid", "humanoid-fall", SceneSource::Mjcf("../benches/peers/humanoid_fall.xml"), 1500, 40),
-        s("vehicle", "buggy-terrain", SceneSource::File("buggy_terrain.toml"), 1000, 25),
+        s("vehicle", "buggy-terrain", SceneSource::File("buggy_terrain.toml"), 1000, 15),
         s("grid", "box-grid", SceneSource::Text(BOX_GRID), 10, 1),
     ]
 }
@@ -172,7 +172,9 @@ pub fn corpus_world(source: &SceneSource, models: &Path) -> Result<CorpusWorld, 
             return Ok(CorpusWorld::Scene(Box::new(scene::load_file(&path).map_err(|e| e.to_string())?)));
         }
         SceneSource::Text(text) => {
-            return Ok(CorpusWorld::Scene(Box::new(scene::load_str(text, models).map_err(|e| e.to_string())?)));
+            return Ok(CorpusWorld::Scene(Box::new(
+                scene::load_str(text, models).map_err(|e| e.to_string())?,
+            )));
         }
         SceneSource::Mjcf(file) => {
             let loaded = crate::io::mjcf::load_file(models.join(file)).map_err(|e| e.to_string())?;
@@ -201,8 +203,10 @@ pub fn corpus_world(source: &SceneSource, models: &Path) -> Result<CorpusWorld, 
         }
         SceneSource::HeavyOnLight { dt } => {
             let mut w = hard_world(dt).map_err(|e| e.to_string())?;
-            add_cube(&mut w, "light", side, 1.0, Vec3::new(0.0, 0.0, side / 2.0)).map_err(|e| e.to_string())?;
-            add_cube(&mut w, "heavy", side, 1000.0, Vec3::new(0.0, 0.0, 1.5 * side)).map_err(|e| e.to_string())?;
+            add_cube(&mut w, "light", side, 1.0, Vec3::new(0.0, 0.0, side / 2.0))
+                .map_err(|e| e.to_string())?;
+            add_cube(&mut w, "heavy", side, 1000.0, Vec3::new(0.0, 0.0, 1.5 * side))
+                .map_err(|e| e.to_string())?;
             w
         }
     };

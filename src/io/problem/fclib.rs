@@ -45,7 +45,8 @@ pub fn fclib_of(problem: &ConstraintProblem) -> Result<FclibLocal, String> {
     if problem.friction != FrictionModel::Cone {
         return Err("FCLIB poses Coulomb cones; this problem has a friction pyramid".into());
     }
-    if n != 3 * problem.contacts.len() || problem.contacts.iter().enumerate().any(|(k, c)| c.normal != 3 * k) {
+    if n != 3 * problem.contacts.len() || problem.contacts.iter().enumerate().any(|(k, c)| c.normal != 3 * k)
+    {
         return Err("FCLIB's local form holds contact blocks only; this problem has other rows".into());
     }
     if let Some(k) = problem.contacts.iter().position(|c| c.mu != c.mu2) {
@@ -71,8 +72,13 @@ impl FclibLocal {
         let laws = (0..self.q.len())
             .map(|i| if i % 3 == 0 { RowLaw::Unilateral } else { RowLaw::Friction { contact: i / 3 } })
             .collect();
-        let mut problem =
-            ConstraintProblem::from_parts(self.w.clone(), self.q.clone(), laws, contacts, FrictionModel::Cone);
+        let mut problem = ConstraintProblem::from_parts(
+            self.w.clone(),
+            self.q.clone(),
+            laws,
+            contacts,
+            FrictionModel::Cone,
+        );
         problem.origins = (0..self.q.len()).map(|i| RowOrigin::Contact(i / 3)).collect();
         problem
     }
@@ -90,7 +96,10 @@ fn h5(path: &Path, field: &str, e: hdf5::Error) -> ProblemFileError {
 pub fn write_fclib(path: &Path, local: &FclibLocal) -> Result<(), ProblemFileError> {
     let m = local.q.len();
     if local.w.shape() != (m, m) || 3 * local.mu.len() != m {
-        return Err(invalid(path, format!("W is {:?}, q has {m} entries and μ {}", local.w.shape(), local.mu.len())));
+        return Err(invalid(
+            path,
+            format!("W is {:?}, q has {m} entries and μ {}", local.w.shape(), local.mu.len()),
+        ));
     }
     let int = |x: usize, field: &str| {
         i32::try_from(x).map_err(|_| invalid(path, format!("{field} = {x} does not fit FCLIB's int")))
@@ -171,34 +180,49 @@ pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
     };
     let spacedim = scalar("fclib_local/spacedim")?;
     if spacedim != 3 {
-        return Err(invalid(path, format!("fclib_local/spacedim = {spacedim}: only 3-D contact problems are read")));
+        return Err(invalid(
+            path,
+            format!("fclib_local/spacedim = {spacedim}: only 3-D contact problems are read"),
+        ));
     }
     if file.link_exists("fclib_local/V") || file.link_exists("fclib_local/R") {
         return Err(invalid(path, "fclib_local/V, R: mixed problems (equality rows) are not read".into()));
     }
     let (m, n, nz) = (scalar("fclib_local/W/m")?, scalar("fclib_local/W/n")?, scalar("fclib_local/W/nz")?);
     if m != n || m < 0 || m % 3 != 0 {
-        return Err(invalid(path, format!("fclib_local/W: {m} × {n}, expected square with 3 rows per contact")));
+        return Err(invalid(
+            path,
+            format!("fclib_local/W: {m} × {n}, expected square with 3 rows per contact"),
+        ));
     }
     let m = m as usize;
     let (p, i, x) = (ints("fclib_local/W/p")?, ints("fclib_local/W/i")?, doubles("fclib_local/W/x")?);
     let index = |v: i64, bound: usize, field: &str| {
-        usize::try_from(v).ok().filter(|&v| v < bound).ok_or_else(|| {
-            invalid(path, format!("fclib_local/W/{field}: index {v} outside 0..{bound}"))
-        })
+        usize::try_from(v)
+            .ok()
+            .filter(|&v| v < bound)
+            .ok_or_else(|| invalid(path, format!("fclib_local/W/{field}: index {v} outside 0..{bound}")))
     };
     let mut w = DMatrix::zeros(m, m);
     if nz == -1 {
         if p.len() != m + 1 || i.len() != x.len() {
             return Err(invalid(
                 path,
-                format!("fclib_local/W/p: {} pointers for {m} columns, i has {}, x has {}", p.len(), i.len(), x.len()),
+                format!(
+                    "fclib_local/W/p: {} pointers for {m} columns, i has {}, x has {}",
+                    p.len(),
+                    i.len(),
+                    x.len()
+                ),
             ));
         }
         for j in 0..m {
             let (start, end) = (p[j], p[j + 1]);
             if start < 0 || end < start || end as usize > x.len() {
-                return Err(invalid(path, format!("fclib_local/W/p: column {j} spans {start}..{end} of {}", x.len())));
+                return Err(invalid(
+                    path,
+                    format!("fclib_local/W/p: column {j} spans {start}..{end} of {}", x.len()),
+                ));
             }
             for k in start as usize..end as usize {
                 w[(index(i[k], m, "i")?, j)] = x[k];
@@ -209,7 +233,12 @@ pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
         if p.len() != count || i.len() != count || x.len() < count {
             return Err(invalid(
                 path,
-                format!("fclib_local/W: nz = {nz} triplets, but p has {}, i {}, x {}", p.len(), i.len(), x.len()),
+                format!(
+                    "fclib_local/W: nz = {nz} triplets, but p has {}, i {}, x {}",
+                    p.len(),
+                    i.len(),
+                    x.len()
+                ),
             ));
         }
         for k in 0..count {
@@ -232,7 +261,10 @@ pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
     let solution = if file.link_exists("solution/u") && file.link_exists("solution/r") {
         let (u, r) = (doubles("solution/u")?, doubles("solution/r")?);
         if u.len() != m || r.len() != m {
-            return Err(invalid(path, format!("solution: u has {} entries and r {}, expected {m}", u.len(), r.len())));
+            return Err(invalid(
+                path,
+                format!("solution: u has {} entries and r {}, expected {m}", u.len(), r.len()),
+            ));
         }
         Some((DVector::from_vec(u), DVector::from_vec(r)))
     } else {
@@ -289,6 +321,17 @@ mod tests {
         assert_eq!(back.solution, local.solution);
         let problem = back.problem();
         assert_eq!(fclib_of(&problem).unwrap().w, local.w);
+    }
+
+    #[test]
+    fn the_committed_sample_reads_as_the_committed_problem_writes() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/problems");
+        let problem = super::super::read_problem(&root.join("stack2-cone-0000")).unwrap();
+        let sample = read_fclib(&root.join("formats/stack2-cone-0000.hdf5")).unwrap();
+        let written = fclib_of(&problem).unwrap();
+        assert_eq!(bits(sample.w.as_slice()), bits(written.w.as_slice()));
+        assert_eq!(bits(sample.q.as_slice()), bits(written.q.as_slice()));
+        assert_eq!(sample.mu, written.mu);
     }
 
     #[test]

@@ -50,7 +50,8 @@ pub use corpus::{
     SolveStatus, SolverRecord,
 };
 pub use corpus_bench::{
-    bench_csv, bench_run, bench_table, bench_text, BenchOptions, BenchRow, BenchRun, BenchSolver, LEVELS, TIME_SHIFT,
+    bench_csv, bench_run, bench_table, bench_text, BenchOptions, BenchRow, BenchRun, BenchSolver, LEVELS,
+    TIME_SHIFT,
 };
 pub use corpus_build::{
     build_corpus, degenerate_rows, index_csv, read_index, reference_solution, BuildOptions, BuildSummary,
@@ -62,9 +63,9 @@ pub use export::{export_problems, ExportError, ExportKind, ExportOptions, Export
 pub use factor::{pivoted_cholesky, qp_matrix, PivotedCholesky};
 #[cfg(feature = "fclib")]
 pub use fclib::{fclib_of, read_fclib, write_fclib, FclibLocal};
-pub use qps::{parse_qps, qps_text, read_qps, write_qps};
 pub use json::{problem_from_json, problem_to_json, problem_to_json_sparse, validate_problem};
 pub use npz::{lcp_facets, lcp_npz, npy_bytes, npz_bytes, qp_npz, stored_zip};
+pub use qps::{parse_qps, qps_text, read_qps, write_qps};
 pub use resolve::{resolve_problem, Regression, Resolved};
 
 use crate::constraints::ConstraintProblem;

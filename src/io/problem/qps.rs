@@ -31,8 +31,16 @@ pub fn qps_text(name: &str, qp: &QpForm) -> String {
         if qp.q[j].to_bits() != 0 {
             entries.push(("obj".to_string(), qp.q[j]));
         }
-        entries.extend((0..qp.g.nrows()).filter(|&i| qp.g[(i, j)].to_bits() != 0).map(|i| (format!("g{i}"), qp.g[(i, j)])));
-        entries.extend((0..qp.a.nrows()).filter(|&i| qp.a[(i, j)].to_bits() != 0).map(|i| (format!("e{i}"), qp.a[(i, j)])));
+        entries.extend(
+            (0..qp.g.nrows())
+                .filter(|&i| qp.g[(i, j)].to_bits() != 0)
+                .map(|i| (format!("g{i}"), qp.g[(i, j)])),
+        );
+        entries.extend(
+            (0..qp.a.nrows())
+                .filter(|&i| qp.a[(i, j)].to_bits() != 0)
+                .map(|i| (format!("e{i}"), qp.a[(i, j)])),
+        );
         if entries.is_empty() {
             // A column must appear to exist: an explicit zero objective entry.
             entries.push(("obj".to_string(), 0.0));
@@ -145,11 +153,17 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
             };
             continue;
         }
-        let column = |name: &str| columns.get(name).copied().ok_or_else(|| format!("line {line}: unknown column \"{name}\""));
-        let row = |name: &str| rows.get(name).copied().ok_or_else(|| format!("line {line}: unknown row \"{name}\""));
+        let column = |name: &str| {
+            columns.get(name).copied().ok_or_else(|| format!("line {line}: unknown column \"{name}\""))
+        };
+        let row = |name: &str| {
+            rows.get(name).copied().ok_or_else(|| format!("line {line}: unknown row \"{name}\""))
+        };
         match section {
             Section::Rows => {
-                let [kind, row] = f[..] else { return Err(format!("line {line}: ROWS needs a type and a name")) };
+                let [kind, row] = f[..] else {
+                    return Err(format!("line {line}: ROWS needs a type and a name"));
+                };
                 let kind = match kind {
                     "N" if !rows.values().any(|r| matches!(r, RowKind::Objective)) => RowKind::Objective,
                     "N" => return Err(format!("line {line}: a second objective row")),
@@ -164,7 +178,9 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
             }
             Section::Columns => {
                 if f.len() != 3 && f.len() != 5 {
-                    return Err(format!("line {line}: COLUMNS needs a column and one or two (row, value) pairs"));
+                    return Err(format!(
+                        "line {line}: COLUMNS needs a column and one or two (row, value) pairs"
+                    ));
                 }
                 let next = columns.len();
                 let j = *columns.entry(f[0].to_string()).or_insert(next);
@@ -177,7 +193,9 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
             }
             Section::Rhs => {
                 if f.len() != 3 && f.len() != 5 {
-                    return Err(format!("line {line}: RHS needs a set name and one or two (row, value) pairs"));
+                    return Err(format!(
+                        "line {line}: RHS needs a set name and one or two (row, value) pairs"
+                    ));
                 }
                 for pair in f[1..].chunks(2) {
                     rhs.push((row(pair[0])?, number(pair[1], line)?));
@@ -187,12 +205,19 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
                 let (kind, j, value) = match f[..] {
                     [kind @ ("FR" | "MI" | "PL"), _, col] => (kind, column(col)?, None),
                     [kind @ ("LO" | "UP" | "FX"), _, col, x] => (kind, column(col)?, Some(number(x, line)?)),
-                    _ => return Err(format!("line {line}: bound \"{}\" is not FR, MI, PL, LO, UP or FX with its fields", raw.trim())),
+                    _ => {
+                        return Err(format!(
+                            "line {line}: bound \"{}\" is not FR, MI, PL, LO, UP or FX with its fields",
+                            raw.trim()
+                        ))
+                    }
                 };
                 bounds.push((f[0].to_string(), j, kind, value));
             }
             Section::Quad => {
-                let [a, b, x] = f[..] else { return Err(format!("line {line}: QUADOBJ needs two columns and a value")) };
+                let [a, b, x] = f[..] else {
+                    return Err(format!("line {line}: QUADOBJ needs two columns and a value"));
+                };
                 quad.push((column(a)?, column(b)?, number(x, line)?));
             }
             Section::None => return Err(format!("line {line}: data outside a section")),
