@@ -126,7 +126,7 @@ fn bad_cbf_and_qps_files_are_typed_errors_naming_the_file_and_the_field() {
     invalid(parse_qps(&qps[..qps.len() / 2], path), "bad.qps", "no ENDATA");
     invalid(parse_qps(&qps.replacen(" g0 ", " nosuchrow ", 1), path), "bad.qps", "unknown row \"nosuchrow\"");
     invalid(
-        parse_qps(&qps.replacen("UP bnd", "XX bnd", 1), path),
+        parse_qps(&qps.replacen("FR bnd", "XX bnd", 1), path),
         "bad.qps",
         "is not FR, MI, PL, LO, UP or FX",
     );
