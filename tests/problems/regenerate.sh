@@ -78,3 +78,16 @@ print("| `%s` | %s | %d | %d | %d | %d | %s | %s | %s | %s | %s |" % (
     run["formulation"], status("clarabel"), status("lemke"), status("pgs")))
 ' "$name" "$dir"
 done
+
+# The standard formats' samples (tests/corpus_formats.rs, the fclib module's tests): CBF of two
+# cone problems, QPS of two QPs, FCLIB of a contact-only cone problem (needs --features fclib).
+mkdir -p "$corpus/formats"
+for name in stack2-cone-0000 sphere-incline-cone-0030; do
+    "$bin" corpus convert "$corpus/$name" --out "$corpus/formats/$name.cbf" >/dev/null
+done
+for name in stack2-pyramid4-0004 box-flat-0000; do
+    "$bin" corpus convert "$corpus/$name" --out "$corpus/formats/$name.qps" >/dev/null
+done
+if "$bin" corpus convert "$corpus/stack2-cone-0000" --out "$tmp/probe.hdf5" >/dev/null 2>&1; then
+    cp "$tmp/probe.hdf5" "$corpus/formats/stack2-cone-0000.hdf5"
+fi

@@ -4,6 +4,7 @@
 //! module beside this file. Errors are printed as one line on stderr with a non-zero exit.
 
 mod bench;
+mod corpus;
 mod dynamics;
 mod inspect;
 mod problems;
@@ -38,6 +39,13 @@ enum Command {
     /// solver fails, or when its status is worse than the one meta.json records (solved <
     /// inaccurate < failed): a corpus problem is a regression test.
     SolveProblem(problems::SolveArgs),
+    /// The contact-problem corpus: `build` (step the corpus scenes, write every problem in
+    /// gelenk's JSON, CBF, QPS and FCLIB with a certified reference) and `bench` (a
+    /// qpbenchmark-style table of solvers over a corpus).
+    Corpus {
+        #[command(subcommand)]
+        what: corpus::CorpusCommand,
+    },
     /// Run a scene file (models/*.toml) and print a summary; optionally record the states.
     Simulate(simulate::SimulateArgs),
     /// Reports: `stability` (the hard-case table) and `speed-error` (error against cost of
@@ -74,6 +82,7 @@ fn main() -> ExitCode {
         Command::Dynamics(args) => dynamics::run(&args),
         Command::ExportProblems(args) => problems::export(&args),
         Command::SolveProblem(args) => problems::solve(&args),
+        Command::Corpus { what } => corpus::run(&what),
         Command::Simulate(args) => simulate::simulate(&args),
         Command::Report { what } => report::run(what),
         Command::Render(args) => simulate::render(&args),

@@ -60,7 +60,12 @@ struct ProblemFile {
     regularization: Vec<f64>,
     #[serde(default)]
     target: Option<Vec<f64>>,
-    delassus: Vec<Vec<f64>>,
+    /// A dense, as rows; absent when `delassus_entries` holds it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    delassus: Option<Vec<Vec<f64>>>,
+    /// A sparse: `[i, j, A_ij]` for every entry that is not +0.0 (the corpus's large problems).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    delassus_entries: Option<Vec<(usize, usize, f64)>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     jacobian: Option<Vec<Vec<f64>>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -202,7 +207,7 @@ pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
     Ok(())
 }
 
-fn to_file(problem: &ConstraintProblem) -> ProblemFile {
+fn to_file(problem: &ConstraintProblem, sparse: bool) -> ProblemFile {
     let bound = |x: f64| x.is_finite().then_some(x);
     let has_jacobian = problem.jacobian.ncols() > 0;
     ProblemFile {
@@ -250,7 +255,16 @@ fn to_file(problem: &ConstraintProblem) -> ProblemFile {
         bias: problem.bias.iter().copied().collect(),
         regularization: problem.regularization.iter().copied().collect(),
         target: Some(problem.target.iter().copied().collect()),
-        delassus: matrix_rows(&problem.delassus_dense()),
+        delassus: (!sparse).then(|| matrix_rows(&problem.delassus_dense())),
+        delassus_entries: sparse.then(|| {
+            let a = problem.delassus_dense();
+            let n = a.nrows();
+            (0..n)
+                .flat_map(|i| (0..n).map(move |j| (i, j)))
+                .filter(|&(i, j)| a[(i, j)].to_bits() != 0)
+                .map(|(i, j)| (i, j, a[(i, j)]))
+                .collect()
+        }),
         jacobian: has_jacobian.then(|| matrix_rows(&problem.jacobian)),
         minv_jt: has_jacobian.then(|| matrix_rows(&problem.minv_jt)),
     }
@@ -287,7 +301,24 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
         kept_sum: Default::default(),
         jacobian,
         minv_jt,
-        delassus: matrix_from_rows(&file.delassus, n, n, "delassus")?,
+        delassus: match (&file.delassus, &file.delassus_entries) {
+            (Some(rows), None) => matrix_from_rows(rows, n, n, "delassus")?,
+            (None, Some(entries)) => {
+                let mut a = DMatrix::zeros(n, n);
+                let mut seen = std::collections::HashSet::with_capacity(entries.len());
+                for &(i, j, x) in entries {
+                    if i >= n || j >= n {
+                        return Err(format!("\"delassus_entries\": entry ({i}, {j}) outside {n}×{n}"));
+                    }
+                    if !seen.insert((i, j)) {
+                        return Err(format!("\"delassus_entries\": entry ({i}, {j}) given twice"));
+                    }
+                    a[(i, j)] = x;
+                }
+                a
+            }
+            _ => return Err("exactly one of \"delassus\" and \"delassus_entries\" must be given".into()),
+        },
         regularization: vector(&file.regularization, n, "regularization")?,
         bias: vector(&file.bias, n, "bias")?,
         target: match &file.target {
@@ -341,7 +372,15 @@ fn from_file(file: ProblemFile) -> Result<ConstraintProblem, String> {
 /// `problem.json`'s text for `problem` (compact JSON), after [`validate_problem`].
 pub fn problem_to_json(problem: &ConstraintProblem) -> Result<String, String> {
     validate_problem(problem)?;
-    serde_json::to_string(&to_file(problem)).map_err(|e| e.to_string())
+    serde_json::to_string(&to_file(problem, false)).map_err(|e| e.to_string())
+}
+
+/// `problem.json`'s text for `problem` with A stored sparse (`delassus_entries`: every entry
+/// whose bits are not +0.0, so −0.0 survives), after [`validate_problem`]; [`problem_from_json`]
+/// reads both forms.
+pub fn problem_to_json_sparse(problem: &ConstraintProblem) -> Result<String, String> {
+    validate_problem(problem)?;
+    serde_json::to_string(&to_file(problem, true)).map_err(|e| e.to_string())
 }
 
 /// The problem in `problem.json`'s text `text`; `path` only names the source in errors.

@@ -20,22 +20,52 @@
 //! One private module per file kind: `json` (problem.json), `cone` (cone.json and the QP form),
 //! `npz` (lcp.npz, qp.npz), `corpus` (re-solving and meta.json); `resolve` judges a re-solved
 //! problem against its meta.json, and `export` writes the problems of a scene's steps.
+//!
+//! The standard formats of the corpus (`gelenk corpus build`, docs/corpus.md), each read back to
+//! the last bit: `cbf` (CBLIB's Conic Benchmark Format: the cone program, its quadratic as a
+//! rotated cone over the pivoted Cholesky factor of `factor`), `qps` (Maros–Meszaros QPS of the
+//! QP form) and, with the `fclib` feature, `fclib` (FCLIB's local HDF5 problem W, q, μ).
 
+mod cbf;
 mod cone;
 mod corpus;
+mod corpus_bench;
+mod corpus_build;
+mod corpus_scenes;
 mod export;
+mod factor;
+#[cfg(feature = "fclib")]
+mod fclib;
 mod json;
 mod npz;
+mod qps;
 mod resolve;
 
+pub use cbf::{
+    cbf_of, cbf_text, parse_cbf, read_cbf, solve_cbf_with_clarabel, write_cbf, CbfCone, CbfFile, CBF_MAX_ROWS,
+};
 pub use cone::{clarabel_settings, cone_json, qp_of, QpForm};
 pub use corpus::{
     formulation, is_frictionless, objective, run_solver, CorpusSolver, ProblemMeta, ResidualRecord,
     SolveStatus, SolverRecord,
 };
+pub use corpus_bench::{
+    bench_csv, bench_run, bench_table, bench_text, BenchOptions, BenchRow, BenchRun, BenchSolver, LEVELS,
+    TIME_SHIFT,
+};
+pub use corpus_build::{
+    build_corpus, degenerate_rows, index_csv, read_index, reference_solution, BuildOptions, BuildSummary,
+    IndexEntry, Reference, CLARABEL_REFERENCE_ROWS, CONDITIONING_ROWS, INDEX_FILE, REFERENCE_FILE,
+    REFERENCE_FORMAT, REFERENCE_TOLERANCE,
+};
+pub use corpus_scenes::{corpus_scenes, corpus_world, CorpusScene, CorpusWorld, SceneSource};
 pub use export::{export_problems, ExportError, ExportKind, ExportOptions, ExportedProblem};
-pub use json::{problem_from_json, problem_to_json, validate_problem};
+pub use factor::{pivoted_cholesky, qp_matrix, PivotedCholesky};
+#[cfg(feature = "fclib")]
+pub use fclib::{fclib_of, read_fclib, write_fclib, FclibLocal};
+pub use json::{problem_from_json, problem_to_json, problem_to_json_sparse, validate_problem};
 pub use npz::{lcp_facets, lcp_npz, npy_bytes, npz_bytes, qp_npz, stored_zip};
+pub use qps::{parse_qps, qps_text, read_qps, write_qps};
 pub use resolve::{resolve_problem, Regression, Resolved};
 
 use crate::constraints::ConstraintProblem;
