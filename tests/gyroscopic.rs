@@ -1,5 +1,5 @@
 //! The velocity-level step does not pump energy by spinning: the gyroscopic couple of the bodies
-//! of free and ball joints is implicit (gelenk::world::gyroscopic), so a lone tumbling body keeps
+//! of free joints is implicit (gelenk::world::gyroscopic), so a lone tumbling body keeps
 //! its kinetic energy to round-off at a game's time step, and one whose centre of mass is off its
 //! origin stays within a few percent.
 

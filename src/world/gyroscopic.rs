@@ -1,4 +1,4 @@
-//! The gyroscopic couple `−ω × I ω` of the bodies of free and ball joints, implicit in the
+//! The gyroscopic couple `−ω × I ω` of the bodies of free joints, implicit in the
 //! velocity-level step's free motion.
 //!
 //! Explicit in the step (inside `C(q, v) v`), the couple makes semi-implicit Euler add energy to
@@ -39,9 +39,11 @@
 //! velocity-dependent terms (the centripetal force of its centre of mass about a ball joint,
 //! the couplings with its parent's motion) stay explicit.
 //!
-//! Which inertia: about the centre of mass for a free joint (the couple of the Newton–Euler
-//! equations about the centre of mass), about the joint's centre for a ball joint (the
-//! body turns about it).
+//! Which bodies: those of free joints, with their inertia about the centre of mass (the couple
+//! of the Newton–Euler equations). The bodies of ball joints keep the explicit couple: inside a
+//! limb the couple about the joint is one part of the coupled chain's velocity product, and
+//! treating it alone implicitly let a powered ragdoll's limits open by 1.15° on landing
+//! (`tests/ragdoll.rs` bounds them by 1°).
 
 use crate::algorithms::solve_mass_matrix_slice;
 use crate::data::Data;
@@ -57,8 +59,8 @@ pub const SPIN_THRESHOLD: f64 = 1e-4;
 /// The buffers of the implicit gyroscopic couple of one multibody, sized once.
 #[derive(Clone, Debug)]
 pub(crate) struct Gyroscopic {
-    /// Bodies of free and ball joints, with their rotational inertia in body axes (about the
-    /// centre of mass for free joints, about the joint for ball joints).
+    /// Bodies of free joints, with their rotational inertia about the centre of mass in body
+    /// axes.
     candidates: Vec<(usize, Mat3)>,
     /// This step's spinning bodies: body, `ω₀` and `L̄` (world axes).
     spinning: Vec<(usize, Vec3, Vec3)>,
@@ -101,12 +103,11 @@ fn add_couple(model: &Model, data: &Data, body: usize, t: &Vec3, out: &mut [f64]
 }
 
 impl Gyroscopic {
-    /// Buffers for `model`: every body of a free or ball joint may spin.
+    /// Buffers for `model`: every body of a free joint may spin.
     pub(crate) fn new(model: &Model) -> Self {
         let candidates: Vec<(usize, Mat3)> = (1..model.nbodies())
             .filter_map(|i| match model.joint(i) {
                 Joint::Free => Some((i, model.inertia(i).inertia_com())),
-                Joint::Ball => Some((i, model.inertia(i).inertia_origin)),
                 _ => None,
             })
             .collect();
