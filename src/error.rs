@@ -6,12 +6,28 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ModelError {
     /// Mass negative, NaN or infinite.
-    #[error("body `{body}`: mass {mass} is negative or not finite")]
+    #[error("body `{body}`: mass {} is negative or not finite", crate::model::ranges::Num(*.mass))]
     InvalidMass {
         /// Body name.
         body: String,
         /// The offending mass (kg).
         mass: f64,
+    },
+    /// A mass, inertia or length beyond the range gelenk computes with ([`crate::model::ranges`]).
+    #[error("{owner} `{name}`: {what} {} {unit} is beyond {} {unit}, the largest gelenk accepts", crate::model::ranges::Num(*.value), crate::model::ranges::Num(*.limit))]
+    OutOfRange {
+        /// "body" or "joint".
+        owner: &'static str,
+        /// Its name.
+        name: String,
+        /// The quantity ("mass", "inertia entry", "centre of mass offset", "placement offset").
+        what: &'static str,
+        /// The value given (its magnitude for a vector).
+        value: f64,
+        /// The bound it passes.
+        limit: f64,
+        /// Its unit.
+        unit: &'static str,
     },
     /// Centre of mass or inertia tensor contains NaN or infinity.
     #[error("body `{body}`: centre of mass or inertia tensor is not finite")]
@@ -126,6 +142,15 @@ pub enum DynamicsError {
         index: usize,
         /// Joint owning that index.
         joint: String,
+    },
+    /// A result came out NaN or infinite although the inputs were finite: the model's masses,
+    /// lengths or the state are too large for double precision (an overflow).
+    #[error("{what} of {at} is not finite (overflow: the model's masses, inertias, lengths or the state are too large)")]
+    NonFiniteResult {
+        /// Which result ("rnea", "aba", "mass matrix", "kinetic energy", …).
+        what: &'static str,
+        /// Where: "joint `name`" for a joint's entry, "the model" for a scalar.
+        at: String,
     },
     /// A ball or free joint's quaternion is (nearly) zero: no rotation to normalize it to.
     #[error("joint `{joint}`: its quaternion has norm {norm:e}, too small to be normalized into a rotation")]

@@ -1,6 +1,7 @@
 //! [`ModelBuilder`]: validates a body description and turns it into a [`Model`], fusing bodies
 //! attached by fixed joints into their parents.
 
+use super::ranges;
 use super::{BallLimits, Frame, FrameKind, GeometrySpec, Joint, Model, NO_DOF};
 use crate::error::ModelError;
 use crate::math::{Mat3, SpatialInertia, Transform, Vec3};
@@ -455,6 +456,17 @@ impl ModelBuilder {
             if !s.placement.is_finite() {
                 return Err(ModelError::NonFinitePlacement { joint: s.joint_name.clone() });
             }
+            let offset = s.placement.translation.norm();
+            if offset > ranges::MAX_LENGTH {
+                return Err(ModelError::OutOfRange {
+                    owner: "joint",
+                    name: s.joint_name.clone(),
+                    what: "placement offset",
+                    value: offset,
+                    limit: ranges::MAX_LENGTH,
+                    unit: "m",
+                });
+            }
             let mut s = s.clone();
             s.joint = normalized_joint(&s.joint_name, &s.joint)?;
             if let Some(b) = &mut s.ball_limits {
@@ -527,6 +539,24 @@ fn validate_inertia(body: &str, inertia: &RigidInertia, accept_inconsistent: boo
     let i = &inertia.inertia_com;
     if !i.iter().chain(inertia.com.iter()).all(|x| x.is_finite()) {
         return Err(ModelError::NonFiniteInertia { body });
+    }
+    let beyond = |what, value: f64, limit: f64, unit| {
+        (value > limit).then(|| ModelError::OutOfRange {
+            owner: "body",
+            name: body.clone(),
+            what,
+            value,
+            limit,
+            unit,
+        })
+    };
+    let checks = [
+        beyond("mass", inertia.mass, ranges::MAX_MASS, "kg"),
+        beyond("inertia entry", i.amax(), ranges::MAX_INERTIA, "kg·m²"),
+        beyond("centre of mass offset", inertia.com.norm(), ranges::MAX_LENGTH, "m"),
+    ];
+    if let Some(e) = checks.into_iter().flatten().next() {
+        return Err(e);
     }
     if (i - i.transpose()).amax() > 1e-9 * i.amax() {
         return Err(ModelError::InertiaNotSymmetric { body });

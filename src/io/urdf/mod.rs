@@ -67,6 +67,8 @@
 //! ```
 
 use crate::error::ModelError;
+use crate::io::limits::ReadLimits;
+use crate::model::ranges::Num;
 use crate::model::{InertiaIssue, Model};
 use std::path::Path;
 use thiserror::Error;
@@ -87,6 +89,8 @@ pub struct UrdfOptions {
     /// Replace an inconsistent link inertia by its balanced form ([`crate::model::RigidInertia::balanced`],
     /// MuJoCo's `balanceinertia`); the warning stays. Without it the inertia is kept as written.
     pub balance_inertia: bool,
+    /// Largest file and deepest element nesting read ([`ReadLimits`]).
+    pub limits: ReadLimits,
 }
 
 impl Default for UrdfOptions {
@@ -96,6 +100,7 @@ impl Default for UrdfOptions {
             root_joint_name: "root_joint".to_string(),
             strict: false,
             balance_inertia: false,
+            limits: ReadLimits::default(),
         }
     }
 }
@@ -177,6 +182,12 @@ pub enum WarningKind {
         /// Upper bound (rad or m).
         upper: f64,
     },
+    /// A positive mass below [`crate::model::ranges::MIN_POSITIVE_MASS`]: kept, but the mass
+    /// matrix may be too ill-conditioned to solve beside ordinary links.
+    TinyMass {
+        /// The mass (kg).
+        mass: f64,
+    },
     /// A link's rotational inertia that no rigid body can have.
     InconsistentInertia {
         /// What is wrong with it.
@@ -205,8 +216,15 @@ impl std::fmt::Display for UrdfWarning {
                 write!(f, "attribute `{attribute}` has text that is not its number(s): read as \"{read}\"")
             }
             WarningKind::InvertedLimits { lower, upper } => {
+                let (lower, upper) = (Num(*lower), Num(*upper));
                 write!(f, "<limit lower=\"{lower}\" upper=\"{upper}\">: lower above upper, read as no position limit")
             }
+            WarningKind::TinyMass { mass } => write!(
+                f,
+                "mass {} kg is below {} kg: kept, but the dynamics may be ill-conditioned",
+                Num(*mass),
+                Num(crate::model::ranges::MIN_POSITIVE_MASS)
+            ),
             WarningKind::InconsistentInertia { issue, balanced } => {
                 let done =
                     if *balanced { "balanced (all moments set to their mean)" } else { "kept as written" };
@@ -286,11 +304,8 @@ pub fn load_str(text: &str, options: &UrdfOptions) -> Result<Model, UrdfError> {
 pub fn load_file_with_warnings(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
-    let text = String::from_utf8(bytes).map_err(|e| UrdfError::Io {
-        file: file.clone(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-    })?;
+    let text =
+        options.limits.read_text_io(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
     let mut loaded = load_named(&text, &file, options)?;
     loaded.model.source_dir = Some(path.parent().map(Path::to_path_buf).unwrap_or_default());
     Ok(loaded)
@@ -302,6 +317,23 @@ pub fn load_str_with_warnings(text: &str, options: &UrdfOptions) -> Result<Loade
 }
 
 fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
+    let parse_err = |message: String| UrdfError::Parse { file: file.to_string(), message };
+    options.limits.check_len(text).map_err(parse_err)?;
+    let max = options.limits.max_depth;
+    crate::io::limits::with_xml_stack(
+        text,
+        max,
+        |depth| {
+            parse_err(format!(
+                "elements are nested {depth} deep; at most {max} levels are supported (ReadLimits::max_depth)"
+            ))
+        },
+        parse_err,
+        || load_parsed(text, file, options),
+    )
+}
+
+fn load_parsed(text: &str, file: &str, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
     let parse_err = |message: String| UrdfError::Parse { file: file.to_string(), message };
     let (text, stray) = trim_stray_text(text);
     let doc = roxmltree::Document::parse(&text).map_err(|e| parse_err(e.to_string()))?;
@@ -317,7 +349,31 @@ fn load_named(text: &str, file: &str, options: &UrdfOptions) -> Result<Loaded, U
     let robot = reader.robot()?;
     let extensions = extension::read_extensions(&doc, file)?;
     let mut warnings = reader.warnings;
-    let model = build::model(&robot, &extensions, file, options, &mut warnings)?;
+    let model = build::model(&robot, &extensions, file, options, &mut warnings).map_err(|e| match e {
+        // An unknown element under <robot> is often a misspelt <link> or <joint>: the tree error
+        // then follows from it, so it names them.
+        UrdfError::Tree { file, what } => {
+            let unknown: Vec<String> = warnings
+                .iter()
+                .filter_map(|w| match &w.kind {
+                    WarningKind::UnknownElement { tag, parent, .. } if parent == "robot" => {
+                        Some(format!("<{tag}> at line {}", w.line))
+                    }
+                    _ => None,
+                })
+                .collect();
+            let what = if unknown.is_empty() {
+                what
+            } else {
+                format!(
+                    "{what} (unknown elements read past: {}; a misspelt <link> or <joint>?)",
+                    unknown.join(", ")
+                )
+            };
+            UrdfError::Tree { file, what }
+        }
+        other => other,
+    })?;
     Ok(Loaded { model, warnings })
 }
 

@@ -451,12 +451,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                 | ModelError::NonFinitePlacement { joint }
                 | ModelError::InvalidLimits { joint, .. }
                 | ModelError::InvalidSuspension { joint }
+                | ModelError::OutOfRange { owner: "joint", name: joint, .. }
                 | ModelError::DuplicateName { what: "joint", name: joint } => Some(joint),
                 _ => None,
             };
             let body = match &source {
                 ModelError::DuplicateName { what: "body", name: body }
                 | ModelError::InvalidMass { body, .. }
+                | ModelError::OutOfRange { owner: "body", name: body, .. }
                 | ModelError::NonFiniteInertia { body }
                 | ModelError::InertiaNotSymmetric { body }
                 | ModelError::InertiaNotPositive { body, .. }
