@@ -339,6 +339,12 @@ pub enum SolverError {
         /// The limit.
         pivots: usize,
     },
+    /// The impulses came out NaN or infinite (a degenerate problem, e.g. a subnormal diagonal).
+    #[error("{solver}: the impulses came out NaN or infinite (a degenerate problem)")]
+    NonFinite {
+        /// Solver name.
+        solver: &'static str,
+    },
     /// A solution was found but its residual is above the tolerance.
     #[error("{solver}: residual {residual:.3e} above tolerance {tolerance:.1e}")]
     Inaccurate {
