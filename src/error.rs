@@ -14,20 +14,16 @@ pub enum ModelError {
         mass: f64,
     },
     /// A mass, inertia or length beyond the range gelenk computes with ([`crate::model::ranges`]).
-    #[error("{owner} `{name}`: {what} {} {unit} is beyond {} {unit}, the largest gelenk accepts", crate::model::ranges::Num(*.value), crate::model::ranges::Num(*.limit))]
+    #[error("{} `{name}`: {} {} {unit} is beyond {} {unit}, the largest gelenk accepts",
+        .quantity.owner(), .quantity.name(), crate::model::ranges::Num(*.value),
+        crate::model::ranges::Num(.quantity.limit()), unit = .quantity.unit())]
     OutOfRange {
-        /// "body" or "joint".
-        owner: &'static str,
-        /// Its name.
+        /// The body's name (the joint's for a placement offset).
         name: String,
-        /// The quantity ("mass", "inertia entry", "centre of mass offset", "placement offset").
-        what: &'static str,
+        /// The quantity.
+        quantity: crate::model::ranges::Quantity,
         /// The value given (its magnitude for a vector).
         value: f64,
-        /// The bound it passes.
-        limit: f64,
-        /// Its unit.
-        unit: &'static str,
     },
     /// Centre of mass or inertia tensor contains NaN or infinity.
     #[error("body `{body}`: centre of mass or inertia tensor is not finite")]

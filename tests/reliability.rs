@@ -8,6 +8,7 @@ use gelenk::io::limits::ReadLimits;
 use gelenk::io::problem::{problem_from_json, run_solver, CorpusSolver, SolveStatus};
 use gelenk::io::scene::{self, RunOptions, SceneError};
 use gelenk::io::urdf::{self, UrdfError, WarningKind};
+use gelenk::model::ranges::Quantity;
 use gelenk::prelude::*;
 use nalgebra::DVector;
 use std::path::Path;
@@ -81,8 +82,8 @@ fn one_link(mass: &str) -> String {
 fn masses_beyond_the_range_are_refused_and_tiny_ones_warned() {
     let e = urdf::load_str(&one_link("1e308"), &UrdfOptions::default()).unwrap_err();
     match &e {
-        UrdfError::Model { source: ModelError::OutOfRange { name, what, .. }, .. } => {
-            assert_eq!((name.as_str(), *what), ("arm", "mass"));
+        UrdfError::Model { source: ModelError::OutOfRange { name, quantity, .. }, .. } => {
+            assert_eq!((name.as_str(), *quantity), ("arm", Quantity::Mass));
         }
         other => panic!("{other}"),
     }

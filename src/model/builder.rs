@@ -458,14 +458,8 @@ impl ModelBuilder {
             }
             let offset = s.placement.translation.norm();
             if offset > ranges::MAX_LENGTH {
-                return Err(ModelError::OutOfRange {
-                    owner: "joint",
-                    name: s.joint_name.clone(),
-                    what: "placement offset",
-                    value: offset,
-                    limit: ranges::MAX_LENGTH,
-                    unit: "m",
-                });
+                let (name, quantity) = (s.joint_name.clone(), ranges::Quantity::PlacementOffset);
+                return Err(ModelError::OutOfRange { name, quantity, value: offset });
             }
             let mut s = s.clone();
             s.joint = normalized_joint(&s.joint_name, &s.joint)?;
@@ -540,23 +534,14 @@ fn validate_inertia(body: &str, inertia: &RigidInertia, accept_inconsistent: boo
     if !i.iter().chain(inertia.com.iter()).all(|x| x.is_finite()) {
         return Err(ModelError::NonFiniteInertia { body });
     }
-    let beyond = |what, value: f64, limit: f64, unit| {
-        (value > limit).then(|| ModelError::OutOfRange {
-            owner: "body",
-            name: body.clone(),
-            what,
-            value,
-            limit,
-            unit,
-        })
-    };
-    let checks = [
-        beyond("mass", inertia.mass, ranges::MAX_MASS, "kg"),
-        beyond("inertia entry", i.amax(), ranges::MAX_INERTIA, "kg·m²"),
-        beyond("centre of mass offset", inertia.com.norm(), ranges::MAX_LENGTH, "m"),
-    ];
-    if let Some(e) = checks.into_iter().flatten().next() {
-        return Err(e);
+    for (quantity, value) in [
+        (ranges::Quantity::Mass, inertia.mass),
+        (ranges::Quantity::Inertia, i.amax()),
+        (ranges::Quantity::ComOffset, inertia.com.norm()),
+    ] {
+        if value > quantity.limit() {
+            return Err(ModelError::OutOfRange { name: body, quantity, value });
+        }
     }
     if (i - i.transpose()).amax() > 1e-9 * i.amax() {
         return Err(ModelError::InertiaNotSymmetric { body });

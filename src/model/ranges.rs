@@ -16,6 +16,58 @@ pub const MAX_LENGTH: f64 = 1e6;
 /// Time steps accepted by scene files (s): from 1e-7 s (10 MHz) to 1 s.
 pub const TIME_STEP_RANGE: (f64, f64) = (1e-7, 1.0);
 
+/// A quantity with an accepted range, as [`crate::error::ModelError::OutOfRange`] names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Quantity {
+    /// A body's mass (kg), at most [`MAX_MASS`].
+    Mass,
+    /// The largest entry of a body's rotational inertia (kg·m²), at most [`MAX_INERTIA`].
+    Inertia,
+    /// The distance of a body's centre of mass from its frame (m), at most [`MAX_LENGTH`].
+    ComOffset,
+    /// The distance of a joint from its parent's frame (m), at most [`MAX_LENGTH`].
+    PlacementOffset,
+}
+
+impl Quantity {
+    /// "body" or "joint".
+    pub fn owner(self) -> &'static str {
+        if self == Quantity::PlacementOffset {
+            "joint"
+        } else {
+            "body"
+        }
+    }
+
+    /// Its name in a message.
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Mass => "mass",
+            Quantity::Inertia => "inertia entry",
+            Quantity::ComOffset => "centre of mass offset",
+            Quantity::PlacementOffset => "placement offset",
+        }
+    }
+
+    /// Its unit.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Quantity::Mass => "kg",
+            Quantity::Inertia => "kg·m²",
+            Quantity::ComOffset | Quantity::PlacementOffset => "m",
+        }
+    }
+
+    /// The largest value accepted.
+    pub fn limit(self) -> f64 {
+        match self {
+            Quantity::Mass => MAX_MASS,
+            Quantity::Inertia => MAX_INERTIA,
+            Quantity::ComOffset | Quantity::PlacementOffset => MAX_LENGTH,
+        }
+    }
+}
+
 /// A number for a message: as written for ordinary magnitudes, in scientific notation otherwise
 /// (`1e308`, not 309 digits).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -323,6 +323,10 @@ impl Copies {
             (None, _) => return Err(format!("{total} copies need `spacing`")),
         };
         let jitter = jitter.map_or(0.0, |x| x.0);
+        let max = crate::model::ranges::MAX_LENGTH;
+        if jitter > max || spacing.amax() > max {
+            return Err(format!("`spacing` and `jitter` must be at most {max:e} m"));
+        }
         if copies_coincide(dims, grid, &spacing, jitter) {
             return Err(format!(
                 "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",
