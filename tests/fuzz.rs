@@ -271,3 +271,18 @@ fn the_fuzzer_reports_a_panic() {
 fn the_fuzzer_reports_a_non_finite_result() {
     fuzz("states", JSON_TOKENS, CASE, |_| finite("planted", &[f64::NAN]));
 }
+
+/// … and a case that runs past its budget (a hang).
+#[test]
+#[should_panic(expected = "(a hang)")]
+fn the_fuzzer_reports_a_hang() {
+    fn spin(input: &[u8]) -> Verdict {
+        let start = std::time::Instant::now();
+        let mut x = input.len() as f64;
+        while input.len() > 1 && start.elapsed() < Duration::from_secs(2) {
+            x = std::hint::black_box(x.sqrt() + 1.0);
+        }
+        finite("spin", &[x])
+    }
+    fuzz("states", JSON_TOKENS, Duration::from_millis(200), spin);
+}

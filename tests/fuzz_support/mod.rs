@@ -2,7 +2,7 @@
 //! `tests/fuzz_corpus/`, then mutates them (numbers replaced by extreme values, ranges deleted,
 //! duplicated and repeated, tokens of the format inserted, bytes flipped, two inputs spliced) for
 //! a time budget, and runs the target on every input on a worker thread. A finding is a panic, a
-//! case over its time budget (a hang), or a target's own complaint (a non-finite number in a
+//! case over its time budget (CPU time of the worker thread: a hang), or a target's own complaint (a non-finite number in a
 //! result returned as `Ok`); the input is saved under the target directory and the test fails.
 //!
 //! `GELENK_FUZZ_SECONDS` (default 8) is each target's budget; `GELENK_FUZZ_SEED` (default fixed,
@@ -169,6 +169,17 @@ fn save(target: &str, input: &[u8]) -> PathBuf {
     path
 }
 
+/// CPU time (s) used so far by the thread whose `/proc/<pid>/task/<tid>` is `task` (Linux), or
+/// `None` where there is no such file: a case's budget is CPU time, so that a machine shared
+/// with other work does not turn a slow case into a "hang".
+fn thread_cpu_seconds(task: &Path) -> Option<f64> {
+    let stat = std::fs::read_to_string(task.join("stat")).ok()?;
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    // After the command name: state is field 3, utime field 14 and stime field 15 (man proc).
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
 /// Runs `run` on the corpus of `target`, then on mutations of it for [`budget`] seconds; every
 /// case must end within `case_budget`. Panics (fails the test) on the first finding, naming the
 /// saved input. Returns the number of cases run.
@@ -185,6 +196,9 @@ pub fn fuzz(
         .name(format!("fuzz-{target}"))
         .stack_size(64 << 20)
         .spawn(move || {
+            let _ = to_main.send(Err(std::fs::read_link("/proc/thread-self")
+                .map(|p| Path::new("/proc").join(p).display().to_string())
+                .unwrap_or_default()));
             for input in inputs {
                 let outcome = std::panic::catch_unwind(|| run(&input)).map_err(|panic| {
                     panic
@@ -199,6 +213,11 @@ pub fn fuzz(
             }
         })
         .unwrap();
+    // The worker's first message names its /proc task directory (empty where there is none).
+    let task = match verdicts.recv() {
+        Ok(Err(path)) if !path.is_empty() => Some(PathBuf::from(path)),
+        _ => None,
+    };
     let seed = seed();
     let mut rng = StdRng::seed_from_u64(seed);
     let start = Instant::now();
@@ -219,15 +238,31 @@ pub fn fuzz(
             input
         };
         let began = Instant::now();
+        let cpu_before = task.as_deref().and_then(thread_cpu_seconds);
         to_worker.send(input.clone()).unwrap();
-        let outcome = verdicts.recv_timeout(case_budget);
+        // A case is over budget when its CPU time is (or, without /proc, its wall time); a
+        // machine busy with other work gets up to 20 times the budget in wall time.
+        let outcome = loop {
+            match verdicts.recv_timeout(case_budget.min(Duration::from_secs(1))) {
+                Ok(outcome) => break Ok(outcome),
+                Err(_) => {
+                    let cpu = cpu_before
+                        .zip(task.as_deref().and_then(thread_cpu_seconds))
+                        .map(|(before, now)| now - before);
+                    let used = cpu.unwrap_or_else(|| began.elapsed().as_secs_f64());
+                    if used > case_budget.as_secs_f64() || began.elapsed() > 20 * case_budget {
+                        break Err(used);
+                    }
+                }
+            }
+        };
         longest = longest.max(began.elapsed());
         cases += 1;
         let problem = match outcome {
             Ok(Ok(Ok(()))) => continue,
             Ok(Ok(Err(wrong))) => format!("wrong result: {wrong}"),
             Ok(Err(panic)) => format!("panic: {panic}"),
-            Err(_) => format!("no answer within {case_budget:?} (a hang)"),
+            Err(used) => format!("no answer after {used:.1} s of CPU, budget {case_budget:?} (a hang)"),
         };
         let path = save(target, &input);
         panic!("fuzz {target} (seed {seed}, case {cases}): {problem}; input saved as {}", path.display());
