@@ -6,12 +6,24 @@ use thiserror::Error;
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ModelError {
     /// Mass negative, NaN or infinite.
-    #[error("body `{body}`: mass {mass} is negative or not finite")]
+    #[error("body `{body}`: mass {} is negative or not finite", crate::model::ranges::Num(*.mass))]
     InvalidMass {
         /// Body name.
         body: String,
         /// The offending mass (kg).
         mass: f64,
+    },
+    /// A mass, inertia or length beyond the range gelenk computes with ([`crate::model::ranges`]).
+    #[error("{} `{name}`: {} {} {unit} is beyond {} {unit}, the largest gelenk accepts",
+        .quantity.owner(), .quantity.name(), crate::model::ranges::Num(*.value),
+        crate::model::ranges::Num(.quantity.limit()), unit = .quantity.unit())]
+    OutOfRange {
+        /// The body's name (the joint's for a placement offset).
+        name: String,
+        /// The quantity.
+        quantity: crate::model::ranges::Quantity,
+        /// The value given (its magnitude for a vector).
+        value: f64,
     },
     /// Centre of mass or inertia tensor contains NaN or infinity.
     #[error("body `{body}`: centre of mass or inertia tensor is not finite")]
@@ -126,6 +138,15 @@ pub enum DynamicsError {
         index: usize,
         /// Joint owning that index.
         joint: String,
+    },
+    /// A result came out NaN or infinite although the inputs were finite: the model's masses,
+    /// lengths or the state are too large for double precision (an overflow).
+    #[error("{what} of {at} is not finite (overflow: the model's masses, inertias, lengths or the state are too large)")]
+    NonFiniteResult {
+        /// Which result ("rnea", "aba", "mass matrix", "kinetic energy", …).
+        what: &'static str,
+        /// Where: "joint `name`" for a joint's entry, "the model" for a scalar.
+        at: String,
     },
     /// A ball or free joint's quaternion is (nearly) zero: no rotation to normalize it to.
     #[error("joint `{joint}`: its quaternion has norm {norm:e}, too small to be normalized into a rotation")]
@@ -331,6 +352,12 @@ pub enum SolverError {
     PivotLimit {
         /// The limit.
         pivots: usize,
+    },
+    /// The impulses came out NaN or infinite (a degenerate problem, e.g. a subnormal diagonal).
+    #[error("{solver}: the impulses came out NaN or infinite (a degenerate problem)")]
+    NonFinite {
+        /// Solver name.
+        solver: &'static str,
     },
     /// A solution was found but its residual is above the tolerance.
     #[error("{solver}: residual {residual:.3e} above tolerance {tolerance:.1e}")]

@@ -151,7 +151,7 @@ impl Recording {
             _ => {
                 return Err(std::io::Error::new(
                     std::io::ErrorKind::InvalidInput,
-                    format!("{}: the output file must end in .csv or .json", path.display()),
+                    "the output file must end in .csv or .json",
                 ))
             }
         };
@@ -262,6 +262,13 @@ pub fn run(
         return Err(SceneError::Options(format!("duration must be non-negative, got {duration}")));
     }
     let dt = scene.world.options().dt;
+    let (dt_min, dt_max) = crate::model::ranges::TIME_STEP_RANGE;
+    if !(dt_min..=dt_max).contains(&dt) {
+        return Err(SceneError::Options(format!(
+            "dt = {} s is outside [{dt_min:e}, {dt_max}] s, the time steps gelenk accepts",
+            crate::model::ranges::Num(dt)
+        )));
+    }
     let steps = (duration / dt - 1e-9).ceil().max(0.0);
     if steps > MAX_RUN_STEPS as f64 {
         return Err(SceneError::Options(format!(
@@ -288,11 +295,11 @@ pub fn run(
     let mut summary = RunSummary { scene: scene.name.clone(), dt, ..RunSummary::default() };
     // The summary reports where the time went.
     scene.world.set_phase_timing(true);
-    summary.energy_start = scene.world.total_energy();
+    summary.energy_start = finite("total energy", 0, scene.world.total_energy())?;
     let mut iterations = 0u64;
     let start = Instant::now();
     if every > 0 {
-        record_row(scene, 0, &mut recording, frames.as_mut());
+        record_row(scene, 0, &mut recording, frames.as_mut())?;
     }
     let mut reported = 0u64;
     for step in 1..=steps {
@@ -300,7 +307,8 @@ pub fn run(
         scene.apply_controls()?;
         let stats =
             scene.world.step().map_err(|source| SceneError::Step { step, time, source: Box::new(source) })?;
-        summary.max_penetration = summary.max_penetration.max(stats.max_penetration);
+        summary.max_penetration =
+            summary.max_penetration.max(finite("penetration", step, stats.max_penetration)?);
         summary.max_contacts = summary.max_contacts.max(stats.contacts);
         summary.max_rows = summary.max_rows.max(stats.rows);
         summary.fallbacks += stats.fallbacks.len() as u64;
@@ -311,10 +319,17 @@ pub fn run(
             summary.solved_steps += 1;
             *summary.solver_usage.entry(stats.solver.to_string()).or_default() += 1;
             summary.max_residual = summary.max_residual.max(stats.residual);
+            if stats.residual.is_nan() {
+                return Err(SceneError::NonFiniteResult {
+                    what: "solver residual",
+                    step,
+                    value: stats.residual,
+                });
+            }
             iterations += stats.iterations as u64;
         }
         if every > 0 && (step % every == 0 || step == steps) {
-            record_row(scene, step, &mut recording, frames.as_mut());
+            record_row(scene, step, &mut recording, frames.as_mut())?;
         }
         let percent = step * 100 / steps;
         if percent > reported {
@@ -331,7 +346,7 @@ pub fn run(
     summary.wall_time = wall;
     summary.steps_per_second = if wall > 0.0 { steps as f64 / wall } else { 0.0 };
     summary.real_time_factor = if wall > 0.0 { summary.simulated_time / wall } else { 0.0 };
-    summary.energy_end = scene.world.total_energy();
+    summary.energy_end = finite("total energy", steps, scene.world.total_energy())?;
     summary.energy_drift = summary.energy_end - summary.energy_start;
     summary.mean_iterations =
         if summary.solved_steps > 0 { iterations as f64 / summary.solved_steps as f64 } else { 0.0 };
@@ -339,13 +354,26 @@ pub fn run(
     Ok(summary)
 }
 
+/// `value`, or the error naming it when it is NaN or infinite.
+fn finite(what: &'static str, step: u64, value: f64) -> Result<f64, SceneError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(SceneError::NonFiniteResult { what, step, value })
+    }
+}
+
 fn record_row(
     scene: &mut Scene,
     step: u64,
     recording: &mut Recording,
     frames: Option<&mut frames::FrameRecorder>,
-) {
-    let total = (scene.record.energy || frames.is_some()).then(|| scene.world.total_energy());
+) -> Result<(), SceneError> {
+    let total = if scene.record.energy || frames.is_some() {
+        Some(finite("total energy", step, scene.world.total_energy())?)
+    } else {
+        None
+    };
     if let (Some(recorder), Some(total)) = (frames, total) {
         let frame = recorder.capture(&scene.world, &recording.bodies, total);
         recording.frames.push(frame);
@@ -372,6 +400,7 @@ fn record_row(
         residual: stats.residual,
         max_penetration: stats.max_penetration,
     });
+    Ok(())
 }
 
 fn record_columns(scene: &Scene) -> Vec<String> {

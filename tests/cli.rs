@@ -104,7 +104,7 @@ fn bad_input_is_one_line_and_nonzero_exit() {
     assert_one_line_error(&out, "quaternion has norm 0");
     std::fs::write(&states, "not json").unwrap();
     let out = gelenk(&["dynamics", &model_path("ur5_robot.urdf"), "--states", states.to_str().unwrap()]);
-    assert_one_line_error(&out, "not valid JSON");
+    assert_one_line_error(&out, "not a states file");
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -14,7 +14,7 @@
 //! leaves): `a' = shift(a_λ) + c_i`, `q̈_i = D⁻¹ (u − Uᵀ a')`, `a_i = a' + S q̈_i`, with
 //! `a_0 = −g`.
 
-use super::check::{check_q, check_v};
+use super::check::{check_q, check_result_v, check_v};
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
@@ -159,6 +159,7 @@ pub fn aba<'d>(
         }
         data.aba_a[i] = a_i;
     }
+    check_result_v(model, &data.ddq, "aba")?;
     Ok(&data.ddq)
 }
 

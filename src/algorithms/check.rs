@@ -37,3 +37,28 @@ fn check(
         }),
     }
 }
+
+/// Checks that a velocity-sized result (`tau`, `nle`, `ddq`, …) is finite, naming the joint of
+/// its first non-finite entry.
+pub(crate) fn check_result_v(
+    model: &Model,
+    x: &DVector<f64>,
+    what: &'static str,
+) -> Result<(), DynamicsError> {
+    match x.iter().position(|e| !e.is_finite()) {
+        None => Ok(()),
+        Some(index) => Err(DynamicsError::NonFiniteResult {
+            what,
+            at: format!("joint `{}`", model.joint_name(model.dof_joint(index))),
+        }),
+    }
+}
+
+/// Checks that a scalar or a 3-vector result of the whole model is finite.
+pub(crate) fn check_result(values: &[f64], what: &'static str) -> Result<(), DynamicsError> {
+    if values.iter().all(|e| e.is_finite()) {
+        Ok(())
+    } else {
+        Err(DynamicsError::NonFiniteResult { what, at: "the model".to_string() })
+    }
+}

@@ -23,7 +23,15 @@ pub fn crba<'d>(
     q: &DVector<f64>,
 ) -> Result<&'d DMatrix<f64>, DynamicsError> {
     compute_joint_jacobians(model, data, q)?;
-    Ok(crba_at_kinematics(model, data))
+    let m = crba_at_kinematics(model, data);
+    if let Some(k) = m.iter().position(|e| !e.is_finite()) {
+        let column = k / m.nrows().max(1);
+        return Err(DynamicsError::NonFiniteResult {
+            what: "mass matrix",
+            at: format!("joint `{}`", model.joint_name(model.dof_joint(column))),
+        });
+    }
+    Ok(m)
 }
 
 /// CRBA's passes after [`compute_joint_jacobians`] at the same q (the joint transforms, body

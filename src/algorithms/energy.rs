@@ -1,7 +1,7 @@
 //! Energies and centre of mass: `T = ½ Σ v_iᵀ I_i v_i`, `V = −Σ m_i gᵀ c_i` (zero at the world
 //! origin), `c = Σ m_i c_i / Σ m_i`.
 
-use super::check::{check_q, check_v};
+use super::check::{check_q, check_result, check_v};
 use super::kinematics::{forward_kinematics, joint_step};
 use crate::data::Data;
 use crate::error::DynamicsError;
@@ -31,6 +31,7 @@ pub fn kinetic_energy(
         total += model.inertias[i].kinetic_energy(&v_i);
     }
     data.kinetic_energy = total;
+    check_result(&[total], "kinetic energy")?;
     Ok(total)
 }
 
@@ -46,6 +47,7 @@ pub fn potential_energy(model: &Model, data: &mut Data, q: &DVector<f64>) -> Res
         })
         .sum();
     data.potential_energy = total;
+    check_result(&[total], "potential energy")?;
     Ok(total)
 }
 
@@ -61,5 +63,6 @@ pub fn center_of_mass(model: &Model, data: &mut Data, q: &DVector<f64>) -> Resul
         mass += inertia.mass;
     }
     data.com = if mass > 0.0 { first_moment / mass } else { Vec3::zeros() };
+    check_result(data.com.as_slice(), "centre of mass")?;
     Ok(data.com)
 }

@@ -2,7 +2,7 @@
 //! `M = Lᵀ D L` with L unit lower triangular and non-zero only where the column's dof is an
 //! ancestor of the row's dof. Costs O(n d²) for tree depth d and fills in nothing.
 
-use super::check::{check_q, check_v};
+use super::check::{check_q, check_result_v, check_v};
 use super::{crba, nonlinear_effects};
 use crate::data::Data;
 use crate::error::DynamicsError;
@@ -169,6 +169,7 @@ pub fn forward_dynamics_crba<'d>(
     ddq -= &data.nle;
     solve_mass_matrix(model, data, &mut ddq);
     data.ddq = ddq;
+    check_result_v(model, &data.ddq, "forward dynamics")?;
     Ok(&data.ddq)
 }
 

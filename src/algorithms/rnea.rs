@@ -5,7 +5,7 @@
 //! with `a_0 = −g`; `f_i = I_i a_i + v_i ×* I_i v_i`. Backward pass: `τ_i = S_iᵀ f_i`,
 //! `f_λ += ^λX*_i f_i`.
 
-use super::check::{check_q, check_v};
+use super::check::{check_q, check_result_v, check_v};
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
@@ -26,6 +26,7 @@ pub fn rnea<'d>(
     check_v(model, v, "v")?;
     check_v(model, a, "a")?;
     rnea_passes(model, data, Some(q), Some(v), Some(a));
+    check_result_v(model, &data.tau, "rnea")?;
     Ok(&data.tau)
 }
 
@@ -40,6 +41,7 @@ pub fn nonlinear_effects<'d>(
     check_v(model, v, "v")?;
     rnea_passes(model, data, Some(q), Some(v), None);
     data.nle.copy_from(&data.tau);
+    check_result_v(model, &data.nle, "nonlinear effects")?;
     Ok(&data.nle)
 }
 
@@ -65,6 +67,7 @@ pub fn generalized_gravity<'d>(
     check_q(model, q)?;
     rnea_passes(model, data, Some(q), None, None);
     data.gravity_torque.copy_from(&data.tau);
+    check_result_v(model, &data.gravity_torque, "generalized gravity")?;
     Ok(&data.gravity_torque)
 }
 

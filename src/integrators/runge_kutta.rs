@@ -415,7 +415,7 @@ impl DormandPrince45 {
             for (i, a) in DP_A.iter().enumerate() {
                 if let Err(e) = s.stage(model, data, tau, h, a, i + 1) {
                     match e {
-                        DynamicsError::NonFinite { .. } => {
+                        DynamicsError::NonFinite { .. } | DynamicsError::NonFiniteResult { .. } => {
                             failed = true;
                             break;
                         }

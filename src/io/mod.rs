@@ -1,10 +1,13 @@
 //! Files in and out: [`urdf`] models (with gelenk's extension for universal and hinge2 joints),
 //! [`mjcf`] scenes (MuJoCo's XML), [`scene`] files (TOML: a world described in text), and
-//! [`problem`] files (constraint problems written for regression tests and other solvers).
+//! [`problem`] files (constraint problems written for regression tests and other solvers), and
+//! [`states`] files (joint states for `gelenk dynamics`). Every reader is bounded by [`limits`].
 
+pub mod limits;
 pub mod mjcf;
 pub mod problem;
 pub mod scene;
+pub mod states;
 pub mod urdf;
 
 /// An XML element as errors name it: `<tag name="…"> at line N` (or `<tag> at line N`).

@@ -1,6 +1,7 @@
 //! [`ModelBuilder`]: validates a body description and turns it into a [`Model`], fusing bodies
 //! attached by fixed joints into their parents.
 
+use super::ranges;
 use super::{BallLimits, Frame, FrameKind, GeometrySpec, Joint, Model, NO_DOF};
 use crate::error::ModelError;
 use crate::math::{Mat3, SpatialInertia, Transform, Vec3};
@@ -455,6 +456,11 @@ impl ModelBuilder {
             if !s.placement.is_finite() {
                 return Err(ModelError::NonFinitePlacement { joint: s.joint_name.clone() });
             }
+            let offset = s.placement.translation.norm();
+            if offset > ranges::MAX_LENGTH {
+                let (name, quantity) = (s.joint_name.clone(), ranges::Quantity::PlacementOffset);
+                return Err(ModelError::OutOfRange { name, quantity, value: offset });
+            }
             let mut s = s.clone();
             s.joint = normalized_joint(&s.joint_name, &s.joint)?;
             if let Some(b) = &mut s.ball_limits {
@@ -527,6 +533,15 @@ fn validate_inertia(body: &str, inertia: &RigidInertia, accept_inconsistent: boo
     let i = &inertia.inertia_com;
     if !i.iter().chain(inertia.com.iter()).all(|x| x.is_finite()) {
         return Err(ModelError::NonFiniteInertia { body });
+    }
+    for (quantity, value) in [
+        (ranges::Quantity::Mass, inertia.mass),
+        (ranges::Quantity::Inertia, i.amax()),
+        (ranges::Quantity::ComOffset, inertia.com.norm()),
+    ] {
+        if value > quantity.limit() {
+            return Err(ModelError::OutOfRange { name: body, quantity, value });
+        }
     }
     if (i - i.transpose()).amax() > 1e-9 * i.amax() {
         return Err(ModelError::InertiaNotSymmetric { body });

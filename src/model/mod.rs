@@ -9,6 +9,7 @@
 mod builder;
 mod geometry;
 pub mod joint;
+pub mod ranges;
 
 pub use builder::{BodySpec, InertiaIssue, JointDynamics, JointLimits, ModelBuilder, RigidInertia};
 pub use geometry::{GeometryRole, GeometrySpec, Shape};

@@ -526,6 +526,11 @@ impl ConstraintSolver for PgsSolver {
         self.workspace.gamma = gamma;
         self.workspace.direction = direction;
         self.workspace.dv = dv;
+        // A degenerate row (a subnormal diagonal entry) can blow the sweeps up: no answer then.
+        if !crate::math::all_finite(lambda.as_slice()) {
+            lambda.fill(0.0);
+            return Err(SolverError::NonFinite { solver: "pgs" });
+        }
         Ok(SolveInfo { iterations: sweeps, note: None, residuals: certified })
     }
 }

@@ -15,7 +15,7 @@ pub(super) struct StackedDofs {
     pub(super) blocks: Vec<(usize, usize)>,
     /// Per block, its multibody and the index of its first dof in that multibody.
     pub(super) block_owner: Vec<(usize, usize)>,
-    /// Every multibody's velocity at the start of the step.
+    /// Every multibody's velocity at the start of the step (sized to `nv` by `stack`).
     pub(super) v_start: DVector<f64>,
     /// The free velocity; after the solve, the velocity after the impulses.
     pub(super) v_free: DVector<f64>,
@@ -43,13 +43,17 @@ impl StackedDofs {
             self.blocks.push((body.col + first, width));
             self.block_owner.push((index, first));
         }
+        // The stacked vectors are sized by the next `stack`: a world built body by body stays
+        // linear in its size.
         self.nv += body.model.nv();
-        self.v_start = DVector::zeros(self.nv);
-        self.v_free = DVector::zeros(self.nv);
     }
 
     /// Stacks every multibody's velocity at the step's start and its free velocity.
     pub(super) fn stack(&mut self, bodies: &[Multibody]) {
+        if self.v_start.len() != self.nv {
+            self.v_start = DVector::zeros(self.nv);
+            self.v_free = DVector::zeros(self.nv);
+        }
         for b in bodies {
             let (col, nv) = (b.col, b.model.nv());
             self.v_start.rows_mut(col, nv).copy_from(&b.state.v);

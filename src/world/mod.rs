@@ -193,13 +193,15 @@ impl World {
         let index = self.collision.add_model(&model, meshes)?;
         debug_assert_eq!(index, self.bodies.len());
         let mut body = Multibody::new(model);
+        let blocks_before = self.dofs.blocks.len();
         self.dofs.add(index, &mut body);
         self.bodies.push(body);
         self.loops.projections.push(None);
         self.names.push(name.to_string());
-        self.rows.builder =
-            ProblemBuilder::with_blocks(self.dofs.nv, &self.dofs.blocks, self.options.friction)
-                .map_err(StepError::Solver)?;
+        self.rows
+            .builder
+            .append_blocks(self.dofs.nv, &self.dofs.blocks[blocks_before..])
+            .map_err(StepError::Solver)?;
         self.rows.kept.invalidate();
         Ok(index)
     }

@@ -47,7 +47,13 @@ pub fn export(args: &ExportArgs) -> Result<(), String> {
     let options = ExportOptions { steps: args.steps, friction, only: args.only.clone() };
     let written = problem::export_problems(&args.scene, &args.out, &options, print_exported)
         .map_err(|e| e.to_string())?;
-    println!("wrote {written} problems of {} steps to {}", args.steps, args.out.display());
+    if args.steps == 0 {
+        println!("no problem written: --steps 0 takes no step");
+    } else if written == 0 {
+        println!("no problem written: none of the {} steps had constraint rows", args.steps);
+    } else {
+        println!("wrote {written} problems of {} steps to {}", args.steps, args.out.display());
+    }
     Ok(())
 }
 

@@ -208,6 +208,34 @@ impl ProblemBuilder {
         Ok(builder)
     }
 
+    /// Appends the velocity columns `self.nv()..nv`, split into `blocks` ((first column, width)
+    /// each, in order, tiling them with no gap or overlap), and drops the rows: the builder is as
+    /// [`ProblemBuilder::with_blocks`] would make it for all the blocks, in time proportional to
+    /// the columns added (a world adds its multibodies one at a time).
+    pub fn append_blocks(&mut self, nv: usize, blocks: &[(usize, usize)]) -> Result<(), SolverError> {
+        let mut next = self.nv;
+        for (b, &(first, width)) in blocks.iter().enumerate() {
+            if first != next || width == 0 {
+                return Err(SolverError::InvalidProblem(format!(
+                    "velocity block {b} ({first}, {width}) does not continue the tiling at column {next}"
+                )));
+            }
+            next = first + width;
+        }
+        if next != nv {
+            return Err(SolverError::InvalidProblem(format!(
+                "appended velocity blocks end at column {next}, not at {nv}"
+            )));
+        }
+        for &(first, width) in blocks {
+            self.block_of_col.resize(first + width, self.blocks.len() as u32);
+            self.blocks.push((first, width));
+        }
+        self.nv = nv;
+        self.clear();
+        Ok(())
+    }
+
     /// Number of velocity coordinates.
     pub fn nv(&self) -> usize {
         self.nv

@@ -83,6 +83,7 @@ pub use coordinates::{q_from_mujoco, q_to_mujoco, v_from_mujoco, v_to_mujoco};
 
 use crate::constraints::FrictionModel;
 use crate::error::MjcfError;
+use crate::io::limits::ReadLimits;
 use crate::math::{Transform, Vec3};
 use crate::model::{Model, Shape};
 use nalgebra::DVector;
@@ -159,18 +160,22 @@ pub struct MjcfScene {
     pub q0: DVector<f64>,
 }
 
-/// Loads an MJCF file.
+/// Loads an MJCF file within the default [`ReadLimits`].
 pub fn load_file(path: impl AsRef<Path>) -> Result<MjcfScene, MjcfError> {
+    load_file_with_limits(path, &ReadLimits::default())
+}
+
+/// Loads an MJCF file, refusing one larger or more deeply nested than `limits`.
+pub fn load_file_with_limits(path: impl AsRef<Path>, limits: &ReadLimits) -> Result<MjcfScene, MjcfError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let text =
-        std::fs::read_to_string(path).map_err(|source| MjcfError::Io { file: file.clone(), source })?;
-    let mut scene = loader::load_named(&text, &file)?;
+    let text = limits.read_text_io(path).map_err(|source| MjcfError::Io { file: file.clone(), source })?;
+    let mut scene = loader::load_named(&text, &file, limits)?;
     scene.model.set_source_dir(Some(path.parent().map(Path::to_path_buf).unwrap_or_default()));
     Ok(scene)
 }
 
-/// Loads an MJCF document from text.
+/// Loads an MJCF document from text within the default [`ReadLimits`].
 pub fn load_str(text: &str) -> Result<MjcfScene, MjcfError> {
-    loader::load_named(text, "<string>")
+    loader::load_named(text, "<string>", &ReadLimits::default())
 }

@@ -95,6 +95,9 @@ fn vector(x: &[f64], n: usize, name: &str) -> Result<DVector<f64>, String> {
     Ok(DVector::from_column_slice(x))
 }
 
+/// Largest magnitude of a problem's numbers (A, b, R, targets, J, M⁻¹Jᵀ).
+const MAX_MAGNITUDE: f64 = 1e100;
+
 /// Checks that `problem` is consistent: sizes, finite numbers, laws and contact blocks agreeing
 /// (what every solver and [`residuals()`](crate::solvers::residuals()) rely on).
 pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
@@ -133,6 +136,10 @@ pub fn validate_problem(problem: &ConstraintProblem) -> Result<(), String> {
     ] {
         if !all_finite(x) {
             return Err(format!("{name} holds NaN or infinity"));
+        }
+        // Products of two such numbers overflow: the solvers' sums would be infinite.
+        if x.iter().any(|v| v.abs() > MAX_MAGNITUDE) {
+            return Err(format!("{name} holds a number beyond ±{MAX_MAGNITUDE:e}"));
         }
     }
     if let Some(i) = problem.regularization.iter().position(|&r| r < 0.0) {

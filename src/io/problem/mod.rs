@@ -151,7 +151,8 @@ fn resolve(path: &Path, name: &str) -> PathBuf {
 }
 
 fn read_text(path: &Path) -> Result<String, ProblemFileError> {
-    std::fs::read_to_string(path)
+    crate::io::limits::ReadLimits::default()
+        .read_text_io(path)
         .map_err(|source| ProblemFileError::Read { path: path.to_path_buf(), source })
 }
 

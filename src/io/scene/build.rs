@@ -10,6 +10,7 @@ use super::source::Source;
 use super::values::{Count, Finite, MaterialRef, NonNegative, V3};
 use super::{Location, RecordOptions, Scene, SceneError, ScriptedVehicle, TimedCommand, INTEGRATORS};
 use crate::constraints::{ContactParameters, JointLimitParameters};
+use crate::io::limits::ReadLimits;
 use crate::math::{Transform, Vec3};
 use crate::vehicle::{Driven, Vehicle, VehicleConfig};
 use crate::world::{SolverKind, StepError, World, WorldOptions};
@@ -33,6 +34,13 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
             "this is XML (a URDF or MJCF file?), not a scene: scene files are TOML (see models/*.toml)";
         return Err(source.invalid(0..0, message.to_string()));
     }
+    let limits = ReadLimits::default();
+    let whole = |message: String| SceneError::Invalid {
+        at: Location { file: source.file.clone(), line: 0, column: 0, key: String::new() },
+        message,
+    };
+    limits.check_len(&source.text).map_err(whole)?;
+    limits.check_data_depth(&source.text).map_err(whole)?;
     let doc: Document = toml::from_str(&source.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
         let message = e.message().trim_end().to_string();
@@ -45,6 +53,11 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
             }
         }
     })?;
+    if doc.ground.is_empty() && doc.urdf.is_empty() && doc.body.is_empty() {
+        return Err(whole(
+            "the scene is empty: it has no [[ground]], [[body]] or [[urdf]] (see models/*.toml)".to_string(),
+        ));
+    }
     let mut b = Builder { src: &source, materials: HashMap::new(), names: HashSet::new() };
 
     // World options.
@@ -89,6 +102,13 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
     }
     if let Some(solvers) = &overrides.solvers {
         options.solvers = solvers.clone();
+    }
+    let (dt_min, dt_max) = crate::model::ranges::TIME_STEP_RANGE;
+    if !(dt_min..=dt_max).contains(&options.dt) {
+        return Err(whole(format!(
+            "[world] dt = {} s is outside [{dt_min:e}, {dt_max}] s, the time steps gelenk accepts",
+            crate::model::ranges::Num(options.dt)
+        )));
     }
     let mut world = World::new(options.clone());
 
@@ -304,6 +324,10 @@ impl Copies {
             (None, _) => return Err(format!("{total} copies need `spacing`")),
         };
         let jitter = jitter.map_or(0.0, |x| x.0);
+        let max = crate::model::ranges::MAX_LENGTH;
+        if jitter > max || spacing.amax() > max {
+            return Err(format!("`spacing` and `jitter` must be at most {max:e} m"));
+        }
         if copies_coincide(dims, grid, &spacing, jitter) {
             return Err(format!(
                 "{total} copies with `spacing` {:?} and no `jitter` would lie on each other",

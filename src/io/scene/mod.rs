@@ -248,6 +248,17 @@ pub enum SceneError {
     /// Invalid [`RunOptions`].
     #[error("run options: {0}")]
     Options(String),
+    /// A quantity of the run came out NaN or infinite (the state stayed finite, but a sum over
+    /// it overflowed: masses, speeds or heights too large for double precision).
+    #[error("{what} is not finite ({value}) after {step} steps")]
+    NonFiniteResult {
+        /// The quantity ("total energy", "penetration", "residual").
+        what: &'static str,
+        /// Steps done when it was found.
+        step: u64,
+        /// The value.
+        value: f64,
+    },
     /// A step failed.
     #[error("step {step} (t = {time} s): {source}")]
     Step {
@@ -399,12 +410,14 @@ impl Scene {
     }
 }
 
-/// Loads a scene file.
+/// Loads a scene file, at most [`crate::io::limits::ReadLimits::max_bytes`] of it (the default
+/// limits; the text's tables and arrays nest at most `max_data_depth` deep).
 pub fn load_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let text =
-        std::fs::read_to_string(path).map_err(|source| SceneError::Io { file: file.clone(), source })?;
+    let text = crate::io::limits::ReadLimits::default()
+        .read_text_io(path)
+        .map_err(|source| SceneError::Io { file: file.clone(), source })?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let source = Source { file, path: Some(path.to_path_buf()), stem, text, base_dir };

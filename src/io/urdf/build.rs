@@ -6,7 +6,7 @@ use super::read::{JointDesc, JointType, LinkDesc, RobotDesc};
 use super::{UrdfError, UrdfOptions, UrdfWarning, WarningKind};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::model::{
-    BodySpec, GeometrySpec, Joint, JointDynamics, JointLimits, Model, ModelBuilder, RigidInertia,
+    ranges, BodySpec, GeometrySpec, Joint, JointDynamics, JointLimits, Model, ModelBuilder, RigidInertia,
 };
 use std::collections::HashMap;
 use std::path::Path;
@@ -69,6 +69,19 @@ pub(super) fn model(
         }
     };
 
+    for link in &robot.links {
+        if link.mass > 0.0 && link.mass < ranges::MIN_POSITIVE_MASS {
+            let warning = UrdfWarning {
+                element: format!("<link name=\"{}\">", link.name),
+                line: link.line,
+                kind: WarningKind::TinyMass { mass: link.mass },
+            };
+            if options.strict {
+                return Err(UrdfError::Parse { file: file.to_string(), message: warning.to_string() });
+            }
+            warnings.push(warning);
+        }
+    }
     let mut builder = ModelBuilder::new();
     builder.name(robot.name.clone());
     builder.accept_inconsistent_inertia(!options.strict);

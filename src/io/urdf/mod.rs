@@ -72,6 +72,8 @@
 
 use crate::collision::MeshOptions;
 use crate::error::{CollisionError, ModelError};
+use crate::io::limits::ReadLimits;
+use crate::model::ranges::Num;
 use crate::model::{InertiaIssue, Model};
 use std::path::Path;
 use thiserror::Error;
@@ -101,6 +103,8 @@ pub struct UrdfOptions {
     /// How collision meshes are found and read for [`UrdfOptions::inertia_from_collision`]
     /// (search paths for `package://` URIs; whether a missing mesh is an error or left out).
     pub meshes: MeshOptions,
+    /// Largest file and deepest element nesting read ([`ReadLimits`]).
+    pub limits: ReadLimits,
 }
 
 impl Default for UrdfOptions {
@@ -112,6 +116,7 @@ impl Default for UrdfOptions {
             balance_inertia: false,
             inertia_from_collision: false,
             meshes: MeshOptions::default(),
+            limits: ReadLimits::default(),
         }
     }
 }
@@ -193,6 +198,12 @@ pub enum WarningKind {
         /// Upper bound (rad or m).
         upper: f64,
     },
+    /// A positive mass below [`crate::model::ranges::MIN_POSITIVE_MASS`]: kept, but the mass
+    /// matrix may be too ill-conditioned to solve beside ordinary links.
+    TinyMass {
+        /// The mass (kg).
+        mass: f64,
+    },
     /// A link's rotational inertia that no rigid body can have.
     InconsistentInertia {
         /// What is wrong with it.
@@ -231,8 +242,15 @@ impl std::fmt::Display for UrdfWarning {
                 write!(f, "attribute `{attribute}` has text that is not its number(s): read as \"{read}\"")
             }
             WarningKind::InvertedLimits { lower, upper } => {
+                let (lower, upper) = (Num(*lower), Num(*upper));
                 write!(f, "<limit lower=\"{lower}\" upper=\"{upper}\">: lower above upper, read as no position limit")
             }
+            WarningKind::TinyMass { mass } => write!(
+                f,
+                "mass {} kg is below {} kg: kept, but the dynamics may be ill-conditioned",
+                Num(*mass),
+                Num(crate::model::ranges::MIN_POSITIVE_MASS)
+            ),
             WarningKind::InconsistentInertia { issue, balanced } => {
                 let done =
                     if *balanced { "balanced (all moments set to their mean)" } else { "kept as written" };
@@ -332,11 +350,8 @@ pub fn load_str(text: &str, options: &UrdfOptions) -> Result<Model, UrdfError> {
 pub fn load_file_with_warnings(path: impl AsRef<Path>, options: &UrdfOptions) -> Result<Loaded, UrdfError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
-    let text = String::from_utf8(bytes).map_err(|e| UrdfError::Io {
-        file: file.clone(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
-    })?;
+    let text =
+        options.limits.read_text_io(path).map_err(|source| UrdfError::Io { file: file.clone(), source })?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut loaded = load_named(&text, &file, Some(&dir), options)?;
     loaded.model.source_dir = Some(dir);
@@ -350,6 +365,28 @@ pub fn load_str_with_warnings(text: &str, options: &UrdfOptions) -> Result<Loade
 
 /// Loads `text`, named `file` in errors; relative mesh paths are relative to `dir`.
 fn load_named(
+    text: &str,
+    file: &str,
+    dir: Option<&Path>,
+    options: &UrdfOptions,
+) -> Result<Loaded, UrdfError> {
+    let parse_err = |message: String| UrdfError::Parse { file: file.to_string(), message };
+    options.limits.check_len(text).map_err(parse_err)?;
+    let max = options.limits.max_depth;
+    crate::io::limits::with_xml_stack(
+        text,
+        max,
+        |depth| {
+            parse_err(format!(
+                "elements are nested {depth} deep; at most {max} levels are supported (ReadLimits::max_depth)"
+            ))
+        },
+        parse_err,
+        || load_parsed(text, file, dir, options),
+    )
+}
+
+fn load_parsed(
     text: &str,
     file: &str,
     dir: Option<&Path>,
@@ -370,7 +407,32 @@ fn load_named(
     let robot = reader.robot()?;
     let extensions = extension::read_extensions(&doc, file)?;
     let mut warnings = reader.warnings;
-    let model = build::model(&robot, &extensions, file, dir, options, &mut warnings)?;
+    let model =
+        build::model(&robot, &extensions, file, dir, options, &mut warnings).map_err(|e| match e {
+            // An unknown element under <robot> is often a misspelt <link> or <joint>: the tree error
+            // then follows from it, so it names them.
+            UrdfError::Tree { file, what } => {
+                let unknown: Vec<String> = warnings
+                    .iter()
+                    .filter_map(|w| match &w.kind {
+                        WarningKind::UnknownElement { tag, parent, .. } if parent == "robot" => {
+                            Some(format!("<{tag}> at line {}", w.line))
+                        }
+                        _ => None,
+                    })
+                    .collect();
+                let what = if unknown.is_empty() {
+                    what
+                } else {
+                    format!(
+                        "{what} (unknown elements read past: {}; a misspelt <link> or <joint>?)",
+                        unknown.join(", ")
+                    )
+                };
+                UrdfError::Tree { file, what }
+            }
+            other => other,
+        })?;
     Ok(Loaded { model, warnings })
 }
 

@@ -7,6 +7,7 @@ use crate::constraints::FrictionModel;
 use crate::error::{MjcfError, ModelError};
 use crate::io::mjcf::{GeomInfo, MjcfBody, MjcfScene, StaticGeometry};
 use crate::math::{Mat3, Transform, Vec3};
+use crate::model::ranges::Quantity;
 use crate::model::{
     BodySpec, FrameKind, GeometryRole, GeometrySpec, Joint, JointDynamics, JointLimits, RigidInertia, Shape,
 };
@@ -451,12 +452,14 @@ impl<'a, 'i> Loader<'a, 'i> {
                 | ModelError::NonFinitePlacement { joint }
                 | ModelError::InvalidLimits { joint, .. }
                 | ModelError::InvalidSuspension { joint }
+                | ModelError::OutOfRange { quantity: Quantity::PlacementOffset, name: joint, .. }
                 | ModelError::DuplicateName { what: "joint", name: joint } => Some(joint),
                 _ => None,
             };
             let body = match &source {
                 ModelError::DuplicateName { what: "body", name: body }
                 | ModelError::InvalidMass { body, .. }
+                | ModelError::OutOfRange { name: body, .. }
                 | ModelError::NonFiniteInertia { body }
                 | ModelError::InertiaNotSymmetric { body }
                 | ModelError::InertiaNotPositive { body, .. }

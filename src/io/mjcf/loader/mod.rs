@@ -9,6 +9,7 @@ use super::schema::{equals_default, schema, Treatment};
 use super::{GeomInfo, MjcfScene, StaticGeometry};
 use crate::constraints::FrictionModel;
 use crate::error::MjcfError;
+use crate::io::limits::ReadLimits;
 use crate::math::{Transform, Vec3};
 use crate::model::{BodySpec, ModelBuilder, Shape};
 use roxmltree::{Node, NodeId};
@@ -98,86 +99,23 @@ struct Loader<'a, 'i> {
     body_count: usize,
 }
 
-/// Element nesting that the XML parser (recursive) handles on any thread's stack.
-const SHALLOW: usize = 100;
-/// Deepest element nesting accepted.
-const MAX_DEPTH: usize = 10_000;
-/// Stack reserved per nesting level when parsing a deep document on its own thread.
-const STACK_PER_LEVEL: usize = 32 * 1024;
-
-pub(super) fn load_named(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {
-    // roxmltree parses recursively: a deeply nested document (a long chain of bodies) would
-    // overflow a small stack, so such documents are parsed on a thread with a stack to match.
-    let depth = nesting_depth(text);
-    if depth <= SHALLOW {
-        return load_on_this_thread(text, file);
-    }
-    if depth > MAX_DEPTH {
-        return Err(MjcfError::Xml {
+pub(super) fn load_named(text: &str, file: &str, limits: &ReadLimits) -> Result<MjcfScene, MjcfError> {
+    // roxmltree parses recursively: a deeply nested document (a long chain of bodies) is parsed
+    // on a thread with a stack to match, and one nested beyond the limit is refused.
+    limits.check_len(text).map_err(|message| MjcfError::Xml { file: file.to_string(), message })?;
+    let max = limits.max_depth;
+    crate::io::limits::with_xml_stack(
+        text,
+        max,
+        |depth| {
+            MjcfError::Xml {
             file: file.to_string(),
-            message: format!("elements are nested {depth} deep; at most {MAX_DEPTH} levels are supported"),
-        });
-    }
-    std::thread::scope(|scope| {
-        std::thread::Builder::new()
-            .name("gelenk-mjcf".to_string())
-            .stack_size((depth + 64) * STACK_PER_LEVEL)
-            .spawn_scoped(scope, || load_on_this_thread(text, file))
-            .map_err(|e| MjcfError::Xml {
-                file: file.to_string(),
-                message: format!("no thread to parse a document nested {depth} deep: {e}"),
-            })?
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-    })
-}
-
-/// An upper bound of the element nesting depth (comments, CDATA, processing instructions,
-/// declarations and quoted attribute values skipped), without parsing.
-fn nesting_depth(text: &str) -> usize {
-    let b = text.as_bytes();
-    let find = |from: usize, pat: &[u8]| {
-        b[from.min(b.len())..]
-            .windows(pat.len())
-            .position(|w| w == pat)
-            .map_or(b.len(), |p| from + p + pat.len())
-    };
-    let (mut i, mut depth, mut max) = (0, 0usize, 0);
-    while i < b.len() {
-        if b[i] != b'<' {
-            i += 1;
-        } else if b[i..].starts_with(b"<!--") {
-            i = find(i + 4, b"-->");
-        } else if b[i..].starts_with(b"<![CDATA[") {
-            i = find(i + 9, b"]]>");
-        } else if b[i..].starts_with(b"<?") {
-            i = find(i + 2, b"?>");
-        } else if b[i..].starts_with(b"<!") {
-            i = find(i + 2, b">");
-        } else if b[i..].starts_with(b"</") {
-            depth = depth.saturating_sub(1);
-            i = find(i + 2, b">");
-        } else {
-            // A start tag: up to the `>` outside quotes; `/>` closes it at once.
-            let mut quote = None;
-            let mut j = i + 1;
-            while j < b.len() {
-                match (quote, b[j]) {
-                    (None, b'"' | b'\'') => quote = Some(b[j]),
-                    (Some(q), c) if c == q => quote = None,
-                    (None, b'>') => break,
-                    _ => {}
-                }
-                j += 1;
-            }
-            if j >= b.len() || b[j - 1] != b'/' {
-                depth += 1;
-                max = max.max(depth);
-            }
-            i = j + 1;
+            message: format!("elements are nested {depth} deep; at most {max} levels are supported (ReadLimits::max_depth)"),
         }
-    }
-    max
+        },
+        |message| MjcfError::Xml { file: file.to_string(), message },
+        || load_on_this_thread(text, file),
+    )
 }
 
 fn load_on_this_thread(text: &str, file: &str) -> Result<MjcfScene, MjcfError> {

@@ -123,6 +123,13 @@ impl Builder<'_> {
                     let y = -sy / 2.0 + sy * j as f64 / (ny - 1) as f64;
                     heights[(i, j)] + slope.x * x + slope.y * y
                 });
+                // Beyond this, collision queries on the field lose all precision (and fail).
+                let max = crate::model::ranges::MAX_LENGTH;
+                if sx.max(sy) > max || heights.iter().any(|h| h.is_nan() || h.abs() > max) {
+                    return Err(err(format!(
+                        "the height field's size and heights must be at most {max:e} m"
+                    )));
+                }
                 (Shape::HeightField { heights, size_x: sx, size_y: sy }, Transform::identity())
             }
         };

@@ -1,0 +1,156 @@
+//! Hostile input ends in a typed error, quickly: endless files and deep nesting are refused by
+//! every reader, masses beyond the accepted range are refused at load, results that overflow are
+//! errors (never NaN or infinity returned as a value), a degenerate problem is not "solved" with
+//! NaN impulses, and an empty scene is an error. See docs/reliability.md.
+
+use gelenk::error::{DynamicsError, ModelError, SolverError};
+use gelenk::io::limits::ReadLimits;
+use gelenk::io::problem::{problem_from_json, run_solver, CorpusSolver, SolveStatus};
+use gelenk::io::scene::{self, RunOptions, SceneError};
+use gelenk::io::urdf::{self, UrdfError, WarningKind};
+use gelenk::model::ranges::Quantity;
+use gelenk::prelude::*;
+use nalgebra::DVector;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+fn manifest(path: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+/// Runs `f`, which must return an error within a second.
+fn fails_fast<T, E: std::fmt::Display>(what: &str, f: impl FnOnce() -> Result<T, E>) -> String {
+    let start = Instant::now();
+    let message = match f() {
+        Ok(_) => panic!("{what}: accepted"),
+        Err(e) => e.to_string(),
+    };
+    assert!(start.elapsed() < Duration::from_secs(1), "{what}: {:?}", start.elapsed());
+    message
+}
+
+#[test]
+fn dev_zero_is_refused_by_every_reader_within_a_second() {
+    let zero = Path::new("/dev/zero");
+    if !zero.exists() {
+        return;
+    }
+    let limit = "larger than the limit of 67108864 bytes";
+    for message in [
+        fails_fast("urdf", || urdf::load_file(zero, &UrdfOptions::default())),
+        fails_fast("mjcf", || gelenk::io::mjcf::load_file(zero)),
+        fails_fast("scene", || scene::load_file(zero)),
+        fails_fast("states", || gelenk::io::states::read_file(zero, 1, 1, &ReadLimits::default())),
+        fails_fast("problem", || gelenk::io::problem::read_problem(zero)),
+    ] {
+        assert!(message.contains(limit), "{message}");
+    }
+}
+
+#[test]
+fn the_size_limit_is_configurable() {
+    let small = ReadLimits { max_bytes: 100, ..ReadLimits::default() };
+    let options = UrdfOptions { limits: small, ..UrdfOptions::default() };
+    let e = urdf::load_file(manifest("models/double_pendulum_simple.urdf"), &options).unwrap_err();
+    assert!(
+        matches!(&e, UrdfError::Io { source, .. } if source.kind() == std::io::ErrorKind::FileTooLarge),
+        "{e}"
+    );
+    urdf::load_file(manifest("models/double_pendulum_simple.urdf"), &UrdfOptions::default()).unwrap();
+}
+
+fn nested(depth: usize) -> String {
+    format!("<robot name=\"r\"><link name=\"a\"/>{}{}</robot>", "<x>".repeat(depth), "</x>".repeat(depth))
+}
+
+#[test]
+fn deep_urdf_nesting_is_refused_and_deep_but_allowed_nesting_loads() {
+    let e = fails_fast("deep urdf", || urdf::load_str(&nested(20_000), &UrdfOptions::default()));
+    assert!(e.contains("nested 20001 deep; at most 10000"), "{e}");
+    let loaded = urdf::load_str_with_warnings(&nested(5_000), &UrdfOptions::default()).unwrap();
+    assert!(matches!(&loaded.warnings[0].kind, WarningKind::UnknownElement { tag, .. } if tag == "x"));
+}
+
+fn one_link(mass: &str) -> String {
+    format!(
+        r#"<robot name="r"><link name="base"/><link name="arm"><inertial><origin xyz="0.5 0 0"/><mass value="{mass}"/><inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+        <joint name="j" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/><origin xyz="0 0 0.5"/></joint></robot>"#
+    )
+}
+
+#[test]
+fn masses_beyond_the_range_are_refused_and_tiny_ones_warned() {
+    let e = urdf::load_str(&one_link("1e308"), &UrdfOptions::default()).unwrap_err();
+    match &e {
+        UrdfError::Model { source: ModelError::OutOfRange { name, quantity, .. }, .. } => {
+            assert_eq!((name.as_str(), *quantity), ("arm", Quantity::Mass));
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("mass 1e308 kg is beyond 1e9 kg"), "{e}");
+    let loaded = urdf::load_str_with_warnings(&one_link("1e-12"), &UrdfOptions::default()).unwrap();
+    assert!(loaded.warnings.iter().any(|w| matches!(w.kind, WarningKind::TinyMass { .. })));
+    assert!(urdf::load_str(&one_link("1e-12"), &UrdfOptions::strict()).is_err());
+    urdf::load_str(&one_link("1e9"), &UrdfOptions::default()).unwrap();
+}
+
+#[test]
+fn overflowing_dynamics_are_errors_naming_the_result_and_joint() {
+    let model = urdf::load_str(&one_link("1e9"), &UrdfOptions::default()).unwrap();
+    let mut data = Data::new(&model);
+    let q = DVector::from_element(1, 0.3);
+    let v = DVector::from_element(1, 1e160);
+    let e = rnea(&model, &mut data, &q, &v, &v).unwrap_err();
+    assert_eq!(e, DynamicsError::NonFiniteResult { what: "rnea", at: "joint `j`".to_string() });
+    assert!(matches!(kinetic_energy(&model, &mut data, &q, &v), Err(DynamicsError::NonFiniteResult { .. })));
+    assert!(matches!(
+        aba(&model, &mut data, &q, &v, &v),
+        Err(DynamicsError::NonFiniteResult { what: "aba", .. })
+    ));
+    // Ordinary values stay fine.
+    let small = DVector::from_element(1, 1.0);
+    assert!(rnea(&model, &mut data, &q, &small, &small).unwrap().iter().all(|x| x.is_finite()));
+}
+
+#[test]
+fn a_run_whose_energy_overflows_is_an_error() {
+    let text = "[[ground]]\nkind = \"plane\"\n[[body]]\nshape = \"sphere\"\nradius = 0.1\nmass = 1\nposition = [0, 0, 1]\nvelocity = [1e200, 0, 0]\n";
+    let mut s = scene::load_str(text, ".").unwrap();
+    let e = scene::run(&mut s, &RunOptions { duration: Some(0.01), ..RunOptions::default() }, |_| {})
+        .unwrap_err();
+    assert!(matches!(e, SceneError::NonFiniteResult { what: "total energy", step: 0, .. }), "{e}");
+}
+
+#[test]
+fn an_empty_scene_and_a_time_step_out_of_range_are_errors() {
+    for text in ["", "# nothing\n[world]\ndt = 0.01\n"] {
+        let e = scene::load_str(text, ".").unwrap_err().to_string();
+        assert!(e.contains("the scene is empty"), "{e}");
+    }
+    let e =
+        scene::load_str("[world]\ndt = 1e-9\n[[ground]]\nkind = \"plane\"\n", ".").unwrap_err().to_string();
+    assert!(e.contains("dt = 1e-9 s is outside [1e-7, 1] s"), "{e}");
+    let deep = format!("x = {}{}\n", "[".repeat(10_000), "]".repeat(10_000));
+    let e = fails_fast("deep toml", || scene::load_str(&deep, "."));
+    assert!(e.contains("nested more than 128 deep"), "{e}");
+}
+
+#[test]
+fn a_misspelt_joint_element_is_named_in_the_tree_error() {
+    let text = r#"<robot name="r"><link name="a"/><link name="b"/>
+        <jiont name="j" type="revolute"><parent link="a"/><child link="b"/></jiont></robot>"#;
+    let e = urdf::load_str(text, &UrdfOptions::default()).unwrap_err().to_string();
+    assert!(e.contains("several root links (a, b)"), "{e}");
+    assert!(e.contains("unknown elements read past: <jiont> at line 2"), "{e}");
+}
+
+#[test]
+fn pgs_refuses_to_return_nan_impulses_on_a_subnormal_diagonal() {
+    let path = manifest("tests/fuzz_corpus/problem/found-subnormal-diagonal.json");
+    let problem = problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    let (record, _) = run_solver(CorpusSolver::Pgs, &problem);
+    assert_eq!(record.status, SolveStatus::Failed, "{record:?}");
+    let mut solver = CorpusSolver::Pgs.solver();
+    let mut lambda = DVector::zeros(problem.rows());
+    assert_eq!(solver.solve(&problem, &mut lambda).unwrap_err(), SolverError::NonFinite { solver: "pgs" });
+}
