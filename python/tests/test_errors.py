@@ -142,7 +142,7 @@ def test_a_failed_step_is_a_step_error_and_the_state_stays(repo):
     # Joint forces of 1e300 N·m overflow the dynamics: the step fails, the state is kept.
     tau = np.full(world.nv, 1e300)
     world.tau = tau
-    with pytest.raises(gelenk.StepError, match=r"^step 1 \(t = 0 s\): multibody `ragdoll"):
+    with pytest.raises(gelenk.StepError, match=r"^step 1 \(t = 0 s\): .*(NaN|infinit|not finite)"):
         world.step()
     assert np.array_equal(world.get_state(), state)
     assert issubclass(gelenk.StepError, RuntimeError)
