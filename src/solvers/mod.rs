@@ -16,7 +16,7 @@ mod subspace;
 /// Why a solver returned no solution (defined with the other error enums in [`crate::error`]).
 pub use crate::error::SolverError;
 pub use chain::{ChainReport, Fallback, SolverChain};
-pub use conic::{cone_program, ClarabelSolver, ConeProgram};
+pub use conic::{cone_program, lifted_cone_program, ClarabelSolver, ConeProgram};
 pub use lemke::{
     lcp_of, lemke, lemke_with_report, Lcp, LemkeOptions, LemkeReport, LemkeSolver, RayCertificate,
 };
