@@ -464,7 +464,8 @@ impl ModelBuilder {
             for g in &s.geometries {
                 let extent =
                     ranges::shape_extent(&g.shape).unwrap_or(0.0).max(g.placement.translation.norm());
-                if !(extent <= ranges::MAX_LENGTH) {
+                // (A non-finite or degenerate shape is the collision world's to refuse.)
+                if extent.is_finite() && extent > ranges::MAX_LENGTH {
                     let (name, quantity) = (s.name.clone(), ranges::Quantity::ShapeSize);
                     return Err(ModelError::OutOfRange { name, quantity, value: extent });
                 }
