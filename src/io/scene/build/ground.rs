@@ -125,7 +125,7 @@ impl Builder<'_> {
                 });
                 // Beyond this, collision queries on the field lose all precision (and fail).
                 let max = crate::model::ranges::MAX_LENGTH;
-                if sx.max(sy) > max || !(heights.amax() <= max) {
+                if sx.max(sy) > max || heights.iter().any(|h| h.is_nan() || h.abs() > max) {
                     return Err(err(format!(
                         "the height field's size and heights must be at most {max:e} m"
                     )));
