@@ -461,6 +461,15 @@ impl ModelBuilder {
                 let (name, quantity) = (s.joint_name.clone(), ranges::Quantity::PlacementOffset);
                 return Err(ModelError::OutOfRange { name, quantity, value: offset });
             }
+            for g in &s.geometries {
+                let extent =
+                    ranges::shape_extent(&g.shape).unwrap_or(0.0).max(g.placement.translation.norm());
+                // (A non-finite or degenerate shape is the collision world's to refuse.)
+                if extent.is_finite() && extent > ranges::MAX_LENGTH {
+                    let (name, quantity) = (s.name.clone(), ranges::Quantity::ShapeSize);
+                    return Err(ModelError::OutOfRange { name, quantity, value: extent });
+                }
+            }
             let mut s = s.clone();
             s.joint = normalized_joint(&s.joint_name, &s.joint)?;
             if let Some(b) = &mut s.ball_limits {

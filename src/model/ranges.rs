@@ -27,6 +27,9 @@ pub enum Quantity {
     ComOffset,
     /// The distance of a joint from its parent's frame (m), at most [`MAX_LENGTH`].
     PlacementOffset,
+    /// A collision or visual shape's largest length ([`shape_extent`]) or its offset from the
+    /// body frame (m), at most [`MAX_LENGTH`].
+    ShapeSize,
 }
 
 impl Quantity {
@@ -46,6 +49,7 @@ impl Quantity {
             Quantity::Inertia => "inertia entry",
             Quantity::ComOffset => "centre of mass offset",
             Quantity::PlacementOffset => "placement offset",
+            Quantity::ShapeSize => "shape size or offset",
         }
     }
 
@@ -54,7 +58,7 @@ impl Quantity {
         match self {
             Quantity::Mass => "kg",
             Quantity::Inertia => "kg·m²",
-            Quantity::ComOffset | Quantity::PlacementOffset => "m",
+            Quantity::ComOffset | Quantity::PlacementOffset | Quantity::ShapeSize => "m",
         }
     }
 
@@ -63,8 +67,29 @@ impl Quantity {
         match self {
             Quantity::Mass => MAX_MASS,
             Quantity::Inertia => MAX_INERTIA,
-            Quantity::ComOffset | Quantity::PlacementOffset => MAX_LENGTH,
+            Quantity::ComOffset | Quantity::PlacementOffset | Quantity::ShapeSize => MAX_LENGTH,
         }
+    }
+}
+
+/// The largest length of a primitive shape (a box side, a radius, a length, a scale, a hull
+/// point's distance from its frame), or `None` for a half-space or a file not yet read.
+pub fn shape_extent(shape: &crate::model::Shape) -> Option<f64> {
+    use crate::model::Shape;
+    let largest = |values: &mut dyn Iterator<Item = f64>| values.fold(0.0f64, |m, x| m.max(x.abs()));
+    match shape {
+        Shape::Box { size } => Some(size.amax()),
+        Shape::Sphere { radius } => Some(radius.abs()),
+        Shape::Capsule { radius, length } | Shape::Cylinder { radius, length } => {
+            Some(radius.abs().max(length.abs()))
+        }
+        Shape::ConvexHull { points } => Some(largest(&mut points.iter().map(|p| p.norm()))),
+        Shape::TriMesh { vertices, .. } => Some(largest(&mut vertices.iter().map(|p| p.norm()))),
+        Shape::HeightField { heights, size_x, size_y } => {
+            Some(heights.amax().max(size_x.abs()).max(size_y.abs()))
+        }
+        Shape::HalfSpace { .. } => None,
+        Shape::Mesh { scale, .. } => Some(scale.amax()),
     }
 }
 

@@ -277,6 +277,10 @@ impl Builder<'_> {
                 }
             }
         };
+        let max = crate::model::ranges::MAX_LENGTH;
+        if crate::model::ranges::shape_extent(&shape).is_some_and(|e| e > max) {
+            return Err(err(format!("the shape's sizes must be at most {max:e} m")));
+        }
         let mass = match (b.mass, b.density) {
             (Some(_), Some(_)) => return Err(err("give `mass` or `density`, not both".to_string())),
             (Some(m), None) => m.0,
