@@ -124,6 +124,18 @@ fn bad_values_are_errors_with_their_line() {
     let message =
         load_error("[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = [4294967296, 4294967296, 1]\n");
     assert!(message.contains("line 4") && message.contains("at most 100000 copies"), "{message}");
+    // Copies within the per-entry cap whose bodies exceed the scene's: 100 000 ragdolls of 16
+    // bodies, and three entries of 70 000 boxes.
+    let message = load_error(
+        "[[urdf]]\npath = \"ragdoll.urdf\"\nfloating = true\ncount = 100000\nspacing = [0, 0, 1]\n",
+    );
+    assert!(
+        message.contains("line 1") && message.contains("1600000 moving bodies; at most 200000"),
+        "{message}"
+    );
+    let boxes = "[[body]]\nshape = \"box\"\nsize = [1, 1, 1]\ncount = 70000\nspacing = [2, 0, 0]\n";
+    let message = load_error(&boxes.repeat(3));
+    assert!(message.contains("line 11") && message.contains("210000 moving bodies"), "{message}");
     let message =
         load_error("[[ground]]\nkind = \"heightfield\"\nsize = [1, 1]\nsamples = [4294967296, 4294967296]\n");
     assert!(message.contains("more than 4194304 heights"), "{message}");

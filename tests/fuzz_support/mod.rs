@@ -222,6 +222,9 @@ pub fn fuzz(
     let mut rng = StdRng::seed_from_u64(seed);
     let start = Instant::now();
     let (mut cases, mut longest) = (0u64, Duration::ZERO);
+    // The case that used the most CPU time, kept so that a slow input can be studied before
+    // it becomes a hang on a slower machine.
+    let (mut slowest_cpu, mut slowest) = (0.0f64, Vec::new());
     let mut next = 0usize;
     loop {
         let input = if next < corpus.len() {
@@ -257,6 +260,11 @@ pub fn fuzz(
             }
         };
         longest = longest.max(began.elapsed());
+        if let Some(cpu) = cpu_before.zip(task.as_deref().and_then(thread_cpu_seconds)).map(|(b, a)| a - b) {
+            if cpu > slowest_cpu {
+                (slowest_cpu, slowest) = (cpu, input.clone());
+            }
+        }
         cases += 1;
         let problem = match outcome {
             Ok(Ok(Ok(()))) => continue,
@@ -267,8 +275,13 @@ pub fn fuzz(
         let path = save(target, &input);
         panic!("fuzz {target} (seed {seed}, case {cases}): {problem}; input saved as {}", path.display());
     }
+    let slowest_note = if slowest_cpu >= 1.0 {
+        format!(", saved as {}", save(&format!("{target}-slowest"), &slowest).display())
+    } else {
+        String::new()
+    };
     eprintln!(
-        "fuzz {target}: {cases} cases in {:.1} s (seed {seed}), longest case {:.3} s",
+        "fuzz {target}: {cases} cases in {:.1} s (seed {seed}), longest case {:.3} s, most CPU {slowest_cpu:.2} s{slowest_note}",
         start.elapsed().as_secs_f64(),
         longest.as_secs_f64()
     );

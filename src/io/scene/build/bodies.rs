@@ -155,6 +155,7 @@ impl Builder<'_> {
 
         // Copies, placed as `[[body]]` copies are.
         let copies = Copies::new(u.count, u.spacing, u.jitter).map_err(err)?;
+        self.claim_bodies(copies.len().saturating_mul(model.nbodies() - 1), span.clone())?;
         let mut rng = rand::rngs::StdRng::seed_from_u64(u.seed.unwrap_or(0));
         for cell in copies.cells() {
             let name = copies.name(&base_name, cell);
@@ -299,6 +300,9 @@ impl Builder<'_> {
 
         // Copies.
         let copies = Copies::new(b.count, b.spacing, b.jitter).map_err(err)?;
+        if !b.fixed {
+            self.claim_bodies(copies.len(), span.clone())?;
+        }
         let mut rng = rand::rngs::StdRng::seed_from_u64(b.seed.unwrap_or(0));
         let base = b.name.clone().unwrap_or_else(|| format!("body{index}"));
 
