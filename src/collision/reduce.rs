@@ -3,6 +3,14 @@
 //! the same heuristic as Gregorius, "Robust contact creation for physics simulations", GDC 2015).
 //! Four well-spread points hold a resting box as firmly as the whole contact polygon does, and the
 //! constraint problem stays small.
+//!
+//! When at least three candidates touch (a gap within a tenth of the margin), the points are
+//! chosen among those alone. A convex hull of a lumpy mesh on the ground has dozens of vertices
+//! within a 2 cm margin, several of them penetrating: chosen by spread among all of them, the
+//! set holds the far rim 1–2 cm above the ground and drops the penetrating vertices between,
+//! and the body rocks on its deepest vertex and sinks. A pair with fewer touching points (a
+//! box landing on an edge) keeps its speculative points, which hold the rotation that closes
+//! them.
 
 use crate::math::Vec3;
 
@@ -19,14 +27,37 @@ pub(crate) struct Candidate {
 /// Maximum number of contact points kept per pair.
 pub const MAX_POINTS_PER_PAIR: usize = 4;
 
-/// Reorders `points` so that its first `k ≤ 4` entries are the reduced set and returns `k`.
-/// Chooses: the deepest point; the point farthest from it; the point making the largest triangle
-/// with those two; the point that adds the largest area outside that triangle (if any does).
-/// Distances are measured in the plane orthogonal to the deepest point's normal.
-pub(crate) fn reduce(points: &mut [Candidate]) -> usize {
+/// Share of the contact margin within which a candidate counts as touching (module docs).
+const TOUCHING_SHARE_OF_MARGIN: f64 = 0.1;
+
+/// Reorders `points` so that its first `k ≤ 4` entries are the reduced set and returns `k`:
+/// among the touching candidates when at least three touch (gap at most a tenth of `margin`,
+/// m; module docs), else among all, [`spread`]'s choice.
+pub(crate) fn reduce(points: &mut [Candidate], margin: f64) -> usize {
     if points.len() <= MAX_POINTS_PER_PAIR {
         return points.len();
     }
+    let touching_gap = TOUCHING_SHARE_OF_MARGIN * margin;
+    let mut touching = 0;
+    for i in 0..points.len() {
+        if points[i].distance <= touching_gap {
+            points.swap(touching, i);
+            touching += 1;
+        }
+    }
+    let pool = if touching >= 3 { touching } else { points.len() };
+    if pool <= MAX_POINTS_PER_PAIR {
+        return pool;
+    }
+    spread(&mut points[..pool])
+}
+
+/// Reorders `points` (more than four) so that its first `k ≤ 4` entries are the most spread
+/// set and returns `k`. Chooses: the deepest point; the point farthest from it; the point making
+/// the largest triangle with those two; the point that adds the largest area outside that
+/// triangle (if any does). Distances are measured in the plane orthogonal to the deepest point's
+/// normal.
+fn spread(points: &mut [Candidate]) -> usize {
     let deepest = argmax(points, 0, |c| -c.distance);
     points.swap(0, deepest);
     let n = points[0].normal;
@@ -128,7 +159,7 @@ mod tests {
                 pts.push(at(i as f64, j as f64, d));
             }
         }
-        let k = reduce(&mut pts);
+        let k = reduce(&mut pts, 0.005);
         assert_eq!(k, 4);
         assert_eq!(pts[0].distance, -0.02);
         // The kept points reach every side of the square.
@@ -140,10 +171,36 @@ mod tests {
         assert_eq!(ys.iter().cloned().fold(f64::NEG_INFINITY, f64::max), 1.0);
     }
 
+    /// A lumpy hull on the ground: five penetrating vertices within 3 cm of the deepest, and a
+    /// rim 6 cm out, 1 to 1.7 cm above the ground (within a 2 cm margin). The set is chosen among
+    /// the touching vertices; with fewer than three touching, the rim is kept (speculative points).
+    #[test]
+    fn touching_points_are_chosen_before_a_far_rim_above_the_ground() {
+        let mut pts = vec![
+            at(0.0, 0.0, -0.0025),
+            at(0.03, 0.0, -0.002),
+            at(-0.03, 0.01, -0.0018),
+            at(0.0, 0.03, -0.0021),
+            at(0.01, -0.03, -0.0016),
+            at(0.06, 0.06, 0.012),
+            at(-0.06, -0.06, 0.017),
+            at(-0.06, 0.06, 0.010),
+        ];
+        let k = reduce(&mut pts, 0.02);
+        assert_eq!(k, 4);
+        assert!(pts[..k].iter().all(|c| c.distance < 0.0), "{:?}", &pts[..k]);
+        assert_eq!(pts[0].distance, -0.0025);
+        // Only two touching: the spread set over all, rim included.
+        let mut few = vec![at(0.0, 0.0, -0.0025), at(0.03, 0.0, -0.002), at(0.06, 0.06, 0.012)];
+        few.extend([at(-0.06, -0.06, 0.017), at(-0.06, 0.06, 0.010), at(0.06, -0.06, 0.015)]);
+        let k = reduce(&mut few, 0.02);
+        assert!(few[..k].iter().any(|c| c.distance > 0.002));
+    }
+
     #[test]
     fn small_sets_are_kept_whole() {
         let mut pts = vec![at(0.0, 0.0, 0.0), at(1.0, 0.0, 0.0)];
-        assert_eq!(reduce(&mut pts), 2);
+        assert_eq!(reduce(&mut pts, 0.005), 2);
     }
 
     /// A wheel's two rim points on flat ground become one point midway, at the deeper depth;

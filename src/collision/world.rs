@@ -548,7 +548,7 @@ impl CollisionWorld {
         }
         self.stats.touching_pairs += 1;
         self.stats.raw_points += self.candidates.len();
-        let mut kept = reduce(&mut self.candidates);
+        let mut kept = reduce(&mut self.candidates, self.options.margin);
         if ca.patch || cb.patch {
             kept = merge_to_patch(&mut self.candidates, kept);
         }
