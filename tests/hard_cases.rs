@@ -10,10 +10,6 @@ use gelenk::world::SolverKind;
 const LEMKE: SolverKind = SolverKind::Lemke { facets: 8 };
 const PGS50: SolverKind = SolverKind::Pgs { iterations: 50, omega: 1.0 };
 
-fn run(name: &str, solver: SolverKind, dt: f64) -> Outcome {
-    run_with(name, solver, dt, IntegratorKind::SemiImplicitEuler)
-}
-
 /// `run` with the world's integrator `integrator` ([`gelenk::world::WorldOptions::integrator`]).
 fn run_with(name: &str, solver: SolverKind, dt: f64, integrator: IntegratorKind) -> Outcome {
     let case = stability::case(name).unwrap_or_else(|| panic!("no case {name}"));
