@@ -6,8 +6,8 @@
 //! rows and their problem → solve and velocity update (warm-started, `warm_start.rs`) → rows for
 //! the speculative contacts and limit stops that the solved velocity closes, and solve again →
 //! integrate q on the manifold (free origins on straight lines, see
-//! [`crate::model::Joint::integrate_decoupled`]) and project loop closures onto their manifold
-//! ([`LoopProjection`]) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
+//! [`crate::model::Joint::integrate_decoupled`]) and close the loop closures at the new
+//! configuration (SHAKE, [`LoopProjection`]) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely. With an integrator other than the
 //! default semi-implicit Euler ([`WorldOptions::integrator`]), steps without contacts, limits,
@@ -322,8 +322,8 @@ impl World {
 
     /// Adds a loop closure between body `closure.body_a` of multibody `multibody_a` and body
     /// `closure.body_b` of multibody `multibody_b` (body 0 of either is the world). The two
-    /// multibodies then sleep and wake together. Closures within one multibody are also
-    /// projected back onto their manifold after each step ([`WorldOptions::loop_projection`]);
+    /// multibodies then sleep and wake together. Closures within one multibody are also closed
+    /// at each step's new configuration ([`WorldOptions::loop_projection`]);
     /// closures between two multibodies rely on their velocity rows and Baumgarte feedback
     /// (`erp`) alone.
     pub fn add_loop_between(

@@ -142,7 +142,8 @@ pub struct WorldOptions {
     /// seven clock reads per step, about 1 % of a 20 µs ragdoll step, so off unless asked for
     /// (`gelenk simulate` and `gelenk bench world` turn it on where they report phases).
     pub time_phases: bool,
-    /// Position-level projection of loop closures after each step.
+    /// The position correction of loop closures within a multibody after each step (SHAKE
+    /// after a velocity-level step, a mass-metric projection after a smooth one).
     pub loop_projection: super::LoopProjection,
     /// Integrator of the steps without contacts, limits, motors or joint friction (see
     /// [`super::smooth`]); the default, semi-implicit Euler, keeps the velocity-level step for

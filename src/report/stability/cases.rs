@@ -146,28 +146,40 @@ pub(super) fn cradle(setting: &Setting) -> Result<Outcome, CaseError> {
     o.gravity = Vec3::zeros();
     o.contact =
         ContactParameters { mu: 0.0, restitution: 1.0, bounce_velocity: 0.0, erp: 0.0, ..Default::default() };
+    let tolerance = o.tolerance;
     let mut w = World::new(o);
-    let r = 0.05;
+    let (r, mass) = (0.05, 1.0);
     for k in 0..5 {
-        let m = add(&mut w, &format!("ball{k}"), ball(r, 1.0))?;
+        let m = add(&mut w, &format!("ball{k}"), ball(r, mass))?;
         let x = if k == 0 { -0.05 } else { 2.0 * r * k as f64 };
         place(&mut w, m, Vec3::new(x, 0.0, 0.0), UnitQuaternion::identity());
     }
     w.multibody_mut(0).state.v[0] = 1.0;
     let (p0, e0) = (w.linear_momentum(), w.total_energy());
-    let (mut dp, mut de) = (0.0f64, f64::NEG_INFINITY);
+    let (mut dp, mut de, mut allowed) = (0.0f64, f64::NEG_INFINITY, CRADLE_ROUND_OFF);
     for _ in 0..steps(0.5, setting.dt) {
         step(&mut w)?;
         dp = dp.max((w.linear_momentum() - p0).norm());
         de = de.max((w.total_energy() - e0) / e0);
+        // An answer accepted at residual τ (m/s) may leave each ball's velocity τ off, so
+        // the energy may differ by up to τ Σ m‖v‖: "never grows" holds to that, and to
+        // round-off.
+        let momenta: f64 = (0..5).map(|k| mass * w.multibody(k).state.v.fixed_rows::<3>(0).norm()).sum();
+        allowed = allowed.max(tolerance * momenta / e0);
     }
     let v: Vec<String> = (0..5).map(|k| format!("{:.3}", w.multibody(k).state.v[0])).collect();
     Ok(Outcome {
         figure: dp,
-        pass: dp < 1e-12 && de <= 1e-12,
-        detail: format!("final v = [{}] m/s, max ΔE/E = {de:.1e}", v.join(", ")),
+        pass: dp < 1e-12 && de <= allowed,
+        detail: format!(
+            "final v = [{}] m/s, max ΔE/E = {de:.1e} (the solve's tolerance allows {allowed:.1e})",
+            v.join(", ")
+        ),
     })
 }
+
+/// The relative energy growth in the cradle that counts as round-off.
+pub(super) const CRADLE_ROUND_OFF: f64 = 1e-12;
 
 /// Principal inertia (kg·m², about the centre of mass) of the T-shaped body: a 0.4 m bar along
 /// x and a 0.3 m stem along −z, 5 cm square sections, 1 kg each, centre of mass at the origin.

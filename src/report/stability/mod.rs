@@ -190,7 +190,7 @@ pub const CASES: [Case; 15] = [
     },
     Case {
         name: "cradle",
-        criterion: "Newton's cradle, 5 balls, ε = 1: |Δp| < 1e-12, energy never grows",
+        criterion: "Newton's cradle, 5 balls, ε = 1: |Δp| < 1e-12, energy never grows (beyond round-off and the solve's residual tolerance τ: ΔE ≤ τ Σ m‖v‖)",
         figure: "|Δp| (kg·m/s)",
         lemke: true,
         run: cradle,

@@ -1,6 +1,7 @@
 //! Stage 8: the new state. The velocity after the impulses is integrated on the manifold (free
-//! origins on straight lines, see [`crate::model::Joint::integrate_decoupled`]) and loop
-//! closures within a multibody are projected back onto their manifold ([`LoopProjection`]); a
+//! origins on straight lines, see [`crate::model::Joint::integrate_decoupled`]) and the loop
+//! closures within a multibody are closed at the new configuration by correcting their
+//! impulse, position and velocity together (SHAKE, [`LoopProjection`]); a
 //! smooth step integrates with its scheme instead ([`crate::world::smooth`]). The new state is
 //! committed only once every multibody's is finite.
 
@@ -47,13 +48,15 @@ pub(crate) fn run(
         // Straight-line origins (R³ × SO(3)), not the SE(3) screw: see
         // `Joint::integrate_decoupled` (a rolling ball would otherwise sink into its plane).
         b.model.integrate_decoupled(&b.state.q, &b.v_next, h, &mut b.q_next);
-        if !b.kinematic {
-            b.transport_free_velocities(h);
-        }
         if let Some(buffers) = loops.projections[i].as_mut() {
             if !b.kinematic && b.factored {
-                buffers.project(b, own(&loops.closures, i), projection).map_err(dynamics_error(&names[i]))?;
+                buffers
+                    .shake(b, own(&loops.closures, i), projection, h)
+                    .map_err(dynamics_error(&names[i]))?;
             }
+        }
+        if !b.kinematic {
+            b.transport_free_velocities(h);
         }
         finite(&names[i], &b.model, &b.q_next, &b.v_next, true)?;
     }
