@@ -4,6 +4,7 @@
 //! number of threads: it is bit for bit what stepping each world alone gives.
 
 use crate::arrays::{array2, array3};
+use crate::checks::{self, Allowed};
 use crate::errors::{self, StepError};
 use crate::model::PyModel;
 use crate::sim::{skip_meshes, Layout, Recipe, Sim};
@@ -168,12 +169,11 @@ pub fn rollout<'py>(
         Ok(slice) => Cow::Borrowed(slice),
         Err(_) => Cow::Owned(c.as_array().iter().copied().collect()),
     });
-    if let Some(k) = controls.as_deref().and_then(|c| c.iter().position(|x| !x.is_finite())) {
-        let (b, t, i) = (k / (steps * nv), k / nv % steps, k % nv);
-        return Err(PyValueError::new_err(format!(
-            "controls[{b}, {t}, {i}] is not finite ({})",
-            controls.as_deref().map_or(0.0, |c| c[k])
-        )));
+    if let Some(c) = controls.as_deref() {
+        if let Some(k) = c.iter().position(|x| !x.is_finite()) {
+            let (b, t, i) = (k / (steps * nv), k / nv % steps, k % nv);
+            checks::number(&format!("controls[{b}, {t}, {i}]"), c[k], Allowed::Finite)?;
+        }
     }
 
     let states = PyArray3::<f64>::zeros(py, [batch, steps, nstate], false);
