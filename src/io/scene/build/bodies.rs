@@ -225,6 +225,7 @@ impl Builder<'_> {
                     source: Box::new(source),
                 })?;
             }
+            self.built_one();
         }
         Ok(warnings)
     }
@@ -342,6 +343,7 @@ impl Builder<'_> {
                     mb.state.v = v;
                 }
             }
+            self.built_one();
         }
         Ok(())
     }
