@@ -17,10 +17,11 @@ fn scene_file(name: &str, text: &str) -> PathBuf {
     path
 }
 
-/// 30 000 boxes on the ground, run for one step: seconds of set-up, a moment of running.
-fn many_boxes() -> PathBuf {
+/// 30 000 boxes on the ground, run for one step: seconds of set-up, a moment of running. Each
+/// test writes its own copy (`name`), as the tests run at the same time.
+fn many_boxes(name: &str) -> PathBuf {
     scene_file(
-        "boxes30000.toml",
+        name,
         "[world]\nduration = 0.002\n\n[[ground]]\n\n[[body]]\nname = \"box\"\nshape = \"box\"\n\
          size = [0.1, 0.1, 0.1]\nmass = 1\nposition = [0, 0, 1]\ncount = [100, 100, 3]\n\
          spacing = [0.3, 0.3, 0.3]\n",
@@ -45,7 +46,7 @@ fn set_up_progress_counts_every_copy_once_in_order() {
 #[test]
 fn a_long_set_up_prints_nothing_when_stderr_is_not_a_terminal() {
     let out = Command::new(env!("CARGO_BIN_EXE_gelenk"))
-        .args(["simulate", many_boxes().to_str().expect("a UTF-8 path")])
+        .args(["simulate", many_boxes("boxes30000.toml").to_str().expect("a UTF-8 path")])
         .output()
         .expect("gelenk runs");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -56,7 +57,8 @@ fn a_long_set_up_prints_nothing_when_stderr_is_not_a_terminal() {
 #[test]
 fn a_long_set_up_shows_its_bar_on_a_terminal() {
     // `script` (util-linux) runs the command on a pseudo-terminal and copies what it printed.
-    let command = format!("{} simulate {}", env!("CARGO_BIN_EXE_gelenk"), many_boxes().display());
+    let scene = many_boxes("boxes30000_terminal.toml");
+    let command = format!("{} simulate {}", env!("CARGO_BIN_EXE_gelenk"), scene.display());
     let Ok(out) = Command::new("script").args(["-qec", &command, "/dev/null"]).output() else {
         eprintln!("skipped: no `script` command (util-linux) to give gelenk a terminal");
         return;
@@ -66,5 +68,5 @@ fn a_long_set_up_shows_its_bar_on_a_terminal() {
     assert!(shown.contains("building the scene ["), "the set-up bar was drawn:\n{shown}");
     assert!(shown.contains("/30000 bodies"), "it counts the bodies:\n{shown}");
     assert!(shown.contains("100%"), "then the run's bar:\n{shown}");
-    assert!(shown.contains("boxes30000: 1 steps"), "and the summary:\n{shown}");
+    assert!(shown.contains("boxes30000_terminal: 1 steps"), "and the summary:\n{shown}");
 }
