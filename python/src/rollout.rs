@@ -217,7 +217,9 @@ pub fn rollout<'py>(
         Some((b, Failure::Step(message))) => {
             return Err(StepError::new_err(format!("rollout {b}, {message}")))
         }
-        Some((b, Failure::Build(message))) => return Err(PyValueError::new_err(format!("rollout {b}: {message}"))),
+        Some((b, Failure::Build(message))) => {
+            return Err(PyValueError::new_err(format!("rollout {b}: {message}")))
+        }
         Some((b, Failure::InitialState(message))) => {
             return Err(PyValueError::new_err(format!("initial_states[{b}]: {message}")))
         }
