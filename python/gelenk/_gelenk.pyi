@@ -151,7 +151,8 @@ class ModelBuilder:
         `suspension` (stiffness N/m, damping N·s/m)). The joint frame sits at `translation` (m)
         and `quaternion` (x, y, z, w) in the parent's frame; the body has mass `mass` (kg),
         centre of mass `com` (m, body frame) and rotational inertia `inertia` (3×3 about the
-        centre of mass, body axes, kg·m²). Nothing is checked until `build()`.
+        centre of mass, body axes, kg·m²). A number that is not finite is a ValueError naming
+        the argument; everything else is checked by `build()`.
         """
     def build(self) -> Model:
         """Validates every body and joint and returns the model (ValueError naming the body or

@@ -90,14 +90,6 @@ pub fn vec3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec3> {
     Ok(Vec3::new(v[0], v[1], v[2]))
 }
 
-/// Checks that every entry is finite, naming the argument and the first bad index.
-pub fn check_finite(values: &[f64], name: &str) -> PyResult<()> {
-    match values.iter().position(|x| !x.is_finite()) {
-        None => Ok(()),
-        Some(i) => Err(PyValueError::new_err(format!("{name}[{i}] is not finite ({})", values[i]))),
-    }
-}
-
 /// A new 1-D array holding `values`.
 pub fn to_py1<'py>(py: Python<'py>, values: &[f64]) -> Bound<'py, PyArray1<f64>> {
     PyArray1::from_slice(py, values)

@@ -9,10 +9,11 @@
 //! | `world.rs` (with `sim.rs`) | `World`, `load_scene`, `load_mjcf` |
 //! | `contacts.rs` | contacts and constraint problems as arrays, `export_problems`, `read_problem` |
 //! | `rollout.rs` | `rollout` |
-//! | `errors.rs`, `arrays.rs` | exceptions, numpy conversions |
+//! | `errors.rs`, `arrays.rs`, `checks.rs` | exceptions, numpy conversions, the check of float arguments |
 
 mod algorithms;
 mod arrays;
+mod checks;
 mod contacts;
 mod errors;
 mod model;

@@ -1,6 +1,7 @@
 //! `gelenk.Model`, `gelenk.Data`, `gelenk.ModelBuilder` and `gelenk.load_urdf`.
 
 use crate::arrays::{to_py1, vector};
+use crate::checks::{self, Allowed};
 use crate::errors;
 use gelenk::io::urdf::UrdfOptions;
 use gelenk::math::{Mat3, Transform, Vec3};
@@ -369,10 +370,11 @@ impl PyModelBuilder {
     /// The constructor, documented on the class (where `help()` shows it).
     #[new]
     #[pyo3(signature = (name="", gravity=[0.0, 0.0, -9.81]))]
-    fn new(name: &str, gravity: [f64; 3]) -> Self {
+    fn new(name: &str, gravity: [f64; 3]) -> PyResult<Self> {
+        checks::numbers("gravity", &gravity, Allowed::Finite)?;
         let mut builder = ModelBuilder::new();
         builder.name(name).gravity(Vec3::from(gravity));
-        Self { builder }
+        Ok(Self { builder })
     }
 
     /// Adds body `name` attached to body `parent` ("universe" for the world) by a joint of type
@@ -381,7 +383,8 @@ impl PyModelBuilder {
     /// `suspension` (stiffness N/m, damping N·s/m)). The joint frame sits at `translation` (m)
     /// and `quaternion` (x, y, z, w) in the parent's frame; the body has mass `mass` (kg),
     /// centre of mass `com` (m, body frame) and rotational inertia `inertia` (3×3 about the
-    /// centre of mass, body axes, kg·m²). Nothing is checked until `build()`.
+    /// centre of mass, body axes, kg·m²). A number that is not finite is a ValueError naming
+    /// the argument; everything else is checked by `build()`.
     #[pyo3(signature = (name, parent, joint, *, axis=None, axis1=None, axis2=None, suspension=None,
         translation=[0.0; 3], quaternion=[0.0, 0.0, 0.0, 1.0], mass=0.0, com=[0.0; 3],
         inertia=[[0.0; 3]; 3], joint_name=None))]
@@ -402,6 +405,19 @@ impl PyModelBuilder {
         inertia: [[f64; 3]; 3],
         joint_name: Option<&str>,
     ) -> PyResult<()> {
+        for (what, values) in [("axis", axis), ("axis1", axis1), ("axis2", axis2)] {
+            checks::numbers(what, &values.unwrap_or_default(), Allowed::Finite)?;
+        }
+        if let Some((stiffness, damping)) = suspension {
+            checks::numbers("suspension", &[stiffness, damping], Allowed::NonNegative)?;
+        }
+        checks::numbers("translation", &translation, Allowed::Finite)?;
+        checks::numbers("quaternion", &quaternion, Allowed::Finite)?;
+        checks::number("mass", mass, Allowed::Finite)?;
+        checks::numbers("com", &com, Allowed::Finite)?;
+        for (r, row) in inertia.iter().enumerate() {
+            checks::numbers(&format!("inertia[{r}]"), row, Allowed::Finite)?;
+        }
         let joint = joint_of(joint, axis, axis1, axis2, suspension)?;
         let norm = quaternion.iter().map(|x| x * x).sum::<f64>().sqrt();
         if !(norm.is_finite() && norm > 1e-9) {
@@ -436,12 +452,10 @@ pub fn integrate<'py>(
     dt: f64,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let m = &model.get().model;
-    if !dt.is_finite() {
-        return Err(PyValueError::new_err(format!("dt must be finite, got {dt}")));
-    }
+    checks::number("dt", dt, Allowed::Finite)?;
     let (q, v) = (vector(q, "q", m.nq())?, vector(v, "v", m.nv())?);
-    crate::arrays::check_finite(q.as_slice(), "q")?;
-    crate::arrays::check_finite(v.as_slice(), "v")?;
+    checks::numbers("q", q.as_slice(), Allowed::Finite)?;
+    checks::numbers("v", v.as_slice(), Allowed::Finite)?;
     m.check_quaternions(q.as_slice()).map_err(errors::dynamics)?;
     let mut out = q.clone();
     errors::guard(|| {
@@ -461,8 +475,8 @@ pub fn difference<'py>(
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
     let m = &model.get().model;
     let (q0, q1) = (vector(q0, "q0", m.nq())?, vector(q1, "q1", m.nq())?);
-    crate::arrays::check_finite(q0.as_slice(), "q0")?;
-    crate::arrays::check_finite(q1.as_slice(), "q1")?;
+    checks::numbers("q0", q0.as_slice(), Allowed::Finite)?;
+    checks::numbers("q1", q1.as_slice(), Allowed::Finite)?;
     m.check_quaternions(q0.as_slice()).map_err(errors::dynamics)?;
     m.check_quaternions(q1.as_slice()).map_err(errors::dynamics)?;
     let mut out = DVector::zeros(m.nv());

@@ -4,6 +4,7 @@
 //! number of threads: it is bit for bit what stepping each world alone gives.
 
 use crate::arrays::{array2, array3};
+use crate::checks::{self, Allowed};
 use crate::errors::{self, StepError};
 use crate::model::PyModel;
 use crate::sim::{skip_meshes, Layout, Recipe, Sim};
@@ -44,7 +45,8 @@ fn pool(threads: usize) -> PyResult<Arc<rayon::ThreadPool>> {
     Ok(built)
 }
 
-/// The world a rollout starts from: a `World`'s, or a `Model` alone in a default world.
+/// The world a rollout's worlds are built from: a `World`'s at its initial state, or a `Model`
+/// alone in a default world.
 fn template(scene: &Bound<'_, PyAny>) -> PyResult<(Sim, Layout)> {
     if let Ok(world) = scene.cast::<PyWorld>() {
         let world = world.borrow();
@@ -70,6 +72,8 @@ fn template(scene: &Bound<'_, PyAny>) -> PyResult<(Sim, Layout)> {
 
 /// Why one world of a rollout stopped.
 enum Failure {
+    /// Its world could not be built again from the scene (the message says why).
+    Build(String),
     /// Its initial state was refused (the message says why).
     InitialState(String),
     /// A step failed (the message names the step).
@@ -129,7 +133,7 @@ pub fn rollout<'py>(
     threads: Option<usize>,
     stats: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (first, layout) = template(scene)?;
+    let (template, layout) = template(scene)?;
     let (nstate, nv) = (layout.nstate(), layout.nv());
     let initial = array2(initial_states, "initial_states")?;
     let [batch, width] = [initial.shape()[0], initial.shape()[1]];
@@ -168,12 +172,11 @@ pub fn rollout<'py>(
         Ok(slice) => Cow::Borrowed(slice),
         Err(_) => Cow::Owned(c.as_array().iter().copied().collect()),
     });
-    if let Some(k) = controls.as_deref().and_then(|c| c.iter().position(|x| !x.is_finite())) {
-        let (b, t, i) = (k / (steps * nv), k / nv % steps, k % nv);
-        return Err(PyValueError::new_err(format!(
-            "controls[{b}, {t}, {i}] is not finite ({})",
-            controls.as_deref().map_or(0.0, |c| c[k])
-        )));
+    if let Some(c) = controls.as_deref() {
+        if let Some(k) = c.iter().position(|x| !x.is_finite()) {
+            let (b, t, i) = (k / (steps * nv), k / nv % steps, k % nv);
+            checks::number(&format!("controls[{b}, {t}, {i}]"), c[k], Allowed::Finite)?;
+        }
     }
 
     let states = PyArray3::<f64>::zeros(py, [batch, steps, nstate], false);
@@ -184,23 +187,22 @@ pub fn rollout<'py>(
 
     let failure = py.detach(|| {
         errors::guard(|| {
-            // The worlds are built here, one by one: a scene holds no shared state, but building
-            // one borrows the template, which may not be shared between threads.
-            let mut sims = Vec::with_capacity(batch);
-            sims.push(first);
-            for _ in 1..batch {
-                sims.push(sims[0].fresh().map_err(PyValueError::new_err)?);
-            }
+            // Each task builds its world from the template (on the thread that steps it, while
+            // the other threads step theirs) and drops it when done: only as many worlds as
+            // threads exist at once. A world cannot be shared between threads (it keeps scratch
+            // buffers in cells), so the template is reached through a lock, held while building.
+            let template = Mutex::new(template);
+            let fresh = || template.lock().unwrap_or_else(|p| p.into_inner()).fresh();
             let block = steps * nstate;
             let mut work = || {
-                sims.par_iter_mut()
-                    .zip(out.par_chunks_mut(block.max(1)))
+                out.par_chunks_mut(block.max(1))
                     .zip(records.par_iter_mut())
                     .enumerate()
-                    .map(|(b, ((sim, out), record))| {
+                    .map(|(b, (out, record))| {
+                        let mut sim = fresh().map_err(|e| (b, Failure::Build(e)))?;
                         let x0 = &initial[b * nstate..(b + 1) * nstate];
                         let u = controls.as_deref().map(|c| &c[b * steps * nv..(b + 1) * steps * nv]);
-                        run_one(sim, &layout, x0, u, out, record, stats).map_err(|e| (b, e))
+                        run_one(&mut sim, &layout, x0, u, out, record, stats).map_err(|e| (b, e))
                     })
                     .collect::<Vec<_>>()
             };
@@ -214,6 +216,9 @@ pub fn rollout<'py>(
     match failure {
         Some((b, Failure::Step(message))) => {
             return Err(StepError::new_err(format!("rollout {b}, {message}")))
+        }
+        Some((b, Failure::Build(message))) => {
+            return Err(PyValueError::new_err(format!("rollout {b}: {message}")))
         }
         Some((b, Failure::InitialState(message))) => {
             return Err(PyValueError::new_err(format!("initial_states[{b}]: {message}")))

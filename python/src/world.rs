@@ -3,6 +3,7 @@
 //! loaders `load_scene` and `load_mjcf`.
 
 use crate::arrays::{to_py1, vec3, vector};
+use crate::checks::{self, Allowed};
 use crate::errors::{self, StepError};
 use crate::model::PyModel;
 use crate::sim::{Layout, Recipe, Sim};
@@ -84,13 +85,10 @@ impl PyWorld {
     fn options(dt: Option<f64>, gravity: Option<[f64; 3]>) -> PyResult<WorldOptions> {
         let mut options = WorldOptions::default();
         if let Some(dt) = dt {
-            if !(dt.is_finite() && dt > 0.0) {
-                return Err(PyValueError::new_err(format!("dt must be positive, got {dt}")));
-            }
-            options.dt = dt;
+            options.dt = checks::number("dt", dt, Allowed::Positive)?;
         }
         if let Some(g) = gravity {
-            crate::arrays::check_finite(&g, "gravity")?;
+            checks::numbers("gravity", &g, Allowed::Finite)?;
             options.gravity = g.into();
         }
         Ok(options)
@@ -304,7 +302,7 @@ impl PyWorld {
     #[setter]
     fn set_tau(&self, tau: &Bound<'_, PyAny>) -> PyResult<()> {
         let tau = vector(tau, "tau", self.layout.nv())?;
-        crate::arrays::check_finite(tau.as_slice(), "tau")?;
+        checks::numbers("tau", tau.as_slice(), Allowed::Finite)?;
         self.lock().write_tau(&self.layout, tau.as_slice());
         Ok(())
     }
@@ -369,9 +367,7 @@ impl PyWorld {
     /// them; the rest of the backlog is dropped) and returns the interpolation factor
     /// α ∈ [0, 1) between the last two states, for rendering.
     fn advance(&self, frame_dt: f64) -> PyResult<f64> {
-        if !frame_dt.is_finite() {
-            return Err(PyValueError::new_err(format!("frame_dt must be finite, got {frame_dt}")));
-        }
+        checks::number("frame_dt", frame_dt, Allowed::Finite)?;
         let mut sim = self.lock();
         errors::guard(|| sim.world_mut().advance(frame_dt).map_err(errors::step))
     }
@@ -435,7 +431,7 @@ impl PyWorld {
         let (force, point) = (vec3(force, "force")?, vec3(point, "point")?);
         let torque = torque.map(|t| vec3(t, "torque")).transpose()?.unwrap_or_default();
         for (v, name) in [(&force, "force"), (&point, "point"), (&torque, "torque")] {
-            crate::arrays::check_finite(v.as_slice(), name)?;
+            checks::numbers(name, v.as_slice(), Allowed::Finite)?;
         }
         let mut sim = self.lock();
         let i = self.multibody_index(&sim, multibody)?;
@@ -452,8 +448,8 @@ impl PyWorld {
         point: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let (impulse, point) = (vec3(impulse, "impulse")?, vec3(point, "point")?);
-        crate::arrays::check_finite(impulse.as_slice(), "impulse")?;
-        crate::arrays::check_finite(point.as_slice(), "point")?;
+        checks::numbers("impulse", impulse.as_slice(), Allowed::Finite)?;
+        checks::numbers("point", point.as_slice(), Allowed::Finite)?;
         let mut sim = self.lock();
         let i = self.multibody_index(&sim, multibody)?;
         let b = Self::body_index(&sim, i, body)?;
@@ -469,15 +465,14 @@ impl PyWorld {
         target_velocity: Option<f64>,
         max_force: f64,
     ) -> PyResult<()> {
+        if let Some(target_velocity) = target_velocity {
+            checks::number("target_velocity", target_velocity, Allowed::Finite)?;
+        }
+        checks::number("max_force", max_force, Allowed::Bound)?;
         let mut sim = self.lock();
         let i = self.multibody_index(&sim, multibody)?;
+        check_dof(sim.world().multibody(i).model().nv(), dof)?;
         let motor = target_velocity.map(|target_velocity| Motor { target_velocity, max_force });
-        check_drive(
-            sim.world().multibody(i).model().nv(),
-            dof,
-            &[target_velocity.unwrap_or(0.0)],
-            max_force,
-        )?;
         sim.world_mut().wake(i);
         sim.world_mut().multibody_mut(i).set_motor(dof, motor);
         Ok(())
@@ -495,19 +490,15 @@ impl PyWorld {
         max_velocity: f64,
         max_force: f64,
     ) -> PyResult<()> {
+        if let Some(target_position) = target_position {
+            checks::number("target_position", target_position, Allowed::Finite)?;
+        }
+        checks::number("gain", gain, Allowed::NonNegative)?;
+        checks::number("max_velocity", max_velocity, Allowed::Bound)?;
+        checks::number("max_force", max_force, Allowed::Bound)?;
         let mut sim = self.lock();
         let i = self.multibody_index(&sim, multibody)?;
-        check_drive(
-            sim.world().multibody(i).model().nv(),
-            dof,
-            &[target_position.unwrap_or(0.0), gain],
-            max_force,
-        )?;
-        if max_velocity.is_nan() || max_velocity < 0.0 {
-            return Err(PyValueError::new_err(format!(
-                "max_velocity must be non-negative, got {max_velocity}"
-            )));
-        }
+        check_dof(sim.world().multibody(i).model().nv(), dof)?;
         let servo =
             target_position.map(|target_position| Servo { target_position, gain, max_velocity, max_force });
         sim.world_mut().wake(i);
@@ -529,14 +520,10 @@ impl PyWorld {
     }
 }
 
-/// Checks a motor's or servo's dof index, finite targets and a non-negative force bound.
-fn check_drive(nv: usize, dof: usize, finite: &[f64], max_force: f64) -> PyResult<()> {
+/// Checks a motor's or servo's dof index against the multibody's `nv` dofs.
+fn check_dof(nv: usize, dof: usize) -> PyResult<()> {
     if dof >= nv {
         return Err(PyIndexError::new_err(format!("dof {dof} is out of range ({nv} dofs)")));
-    }
-    crate::arrays::check_finite(finite, "target")?;
-    if max_force.is_nan() || max_force < 0.0 {
-        return Err(PyValueError::new_err(format!("max_force must be non-negative, got {max_force}")));
     }
     Ok(())
 }

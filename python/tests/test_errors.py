@@ -61,7 +61,7 @@ def test_a_degenerate_quaternion_is_a_value_error(repo):
         gelenk.crba(model, data, q)
     with pytest.raises(ValueError, match="quaternion"):
         gelenk.integrate(model, q, np.zeros(model.nv))
-    with pytest.raises(ValueError, match="^dt must be finite, got NaN$"):
+    with pytest.raises(ValueError, match=r"^dt is not finite \(NaN\)$"):
         gelenk.integrate(model, model.neutral(), np.zeros(model.nv), float("nan"))
 
 
@@ -146,3 +146,61 @@ def test_a_failed_step_is_a_step_error_and_the_state_stays(repo):
         world.step()
     assert np.array_equal(world.get_state(), state)
     assert issubclass(gelenk.StepError, RuntimeError)
+
+
+NAN, INF = float("nan"), float("inf")
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda w: w.set_servo(0, 1, 0.3, gain=NAN), r"^gain is not finite \(NaN\)$"),
+        (lambda w: w.set_servo(0, 1, 0.3, gain=-1.0), r"^gain must be ≥ 0, got -1$"),
+        (lambda w: w.set_servo(0, 1, INF), r"^target_position is not finite \(inf\)$"),
+        (lambda w: w.set_servo(0, 1, 0.3, max_velocity=NAN), r"^max_velocity is not a number \(NaN\)$"),
+        (lambda w: w.set_servo(0, 1, 0.3, max_force=-INF), r"^max_force must be ≥ 0 \(or inf: no bound\), got -inf$"),
+        (lambda w: w.set_motor(0, 1, NAN), r"^target_velocity is not finite \(NaN\)$"),
+        (lambda w: w.set_motor(0, 1, 1.0, max_force=NAN), r"^max_force is not a number \(NaN\)$"),
+        (lambda w: w.advance(INF), r"^frame_dt is not finite \(inf\)$"),
+        (lambda w: w.apply_force(0, 1, np.array([0.0, NAN, 0.0]), np.zeros(3)), r"^force\[1\] is not finite \(NaN\)$"),
+        (lambda w: w.apply_force(0, 1, np.zeros(3), np.zeros(3), np.array([0, 0, -INF])),
+         r"^torque\[2\] is not finite \(-inf\)$"),
+        (lambda w: w.apply_impulse(0, 1, np.zeros(3), np.array([INF, 0, 0])), r"^point\[0\] is not finite \(inf\)$"),
+    ],
+)
+def test_every_float_argument_of_a_world_is_checked_by_name(repo, call, message):
+    world = gelenk.load_scene(repo / "models/ragdoll_fall.toml")
+    state = world.get_state()
+    with pytest.raises(ValueError, match=message):
+        call(world)
+    world.step()
+    reference = gelenk.load_scene(repo / "models/ragdoll_fall.toml")
+    reference.step()
+    assert np.array_equal(world.get_state(), reference.get_state()), "a refused call changes nothing"
+    assert not np.array_equal(world.get_state(), state)
+
+
+def test_float_arguments_of_constructors_are_checked_by_name(ur5):
+    model, _ = ur5
+    with pytest.raises(ValueError, match=r"^dt must be > 0, got 0$"):
+        gelenk.World(model, dt=0.0)
+    with pytest.raises(ValueError, match=r"^dt is not finite \(NaN\)$"):
+        gelenk.World(model, dt=NAN)
+    with pytest.raises(ValueError, match=r"^gravity\[2\] is not finite \(NaN\)$"):
+        gelenk.World(model, gravity=[0.0, 0.0, NAN])
+    with pytest.raises(ValueError, match=r"^gravity\[0\] is not finite \(inf\)$"):
+        gelenk.ModelBuilder(gravity=[INF, 0.0, 0.0])
+    builder = gelenk.ModelBuilder()
+    good = dict(axis=[0.0, 0.0, 1.0], mass=1.0, inertia=[[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]])
+    for bad, message in [
+        (dict(mass=NAN), r"^mass is not finite \(NaN\)$"),
+        (dict(axis=[0.0, NAN, 1.0]), r"^axis\[1\] is not finite \(NaN\)$"),
+        (dict(translation=[0.0, 0.0, INF]), r"^translation\[2\] is not finite \(inf\)$"),
+        (dict(com=[NAN, 0.0, 0.0]), r"^com\[0\] is not finite \(NaN\)$"),
+        (dict(inertia=[[0.1, 0, 0], [0, 0.1, NAN], [0, 0, 0.1]]), r"^inertia\[1\]\[2\] is not finite \(NaN\)$"),
+        (dict(quaternion=[0.0, 0.0, 0.0, NAN]), r"^quaternion\[3\] is not finite \(NaN\)$"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            builder.add_body("link", "universe", "hinge", **{**good, **bad})
+    builder.add_body("link", "universe", "hinge", **good)
+    assert builder.build().nv == 1, "refused bodies were not added"

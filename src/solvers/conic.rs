@@ -113,10 +113,10 @@ fn constraint_rows(
             cone_normal[c.normal] = true;
         }
     }
-    for (i, law) in problem.laws.iter().enumerate().take(n) {
+    for (i, (law, &on_cone)) in problem.laws.iter().zip(&cone_normal).enumerate() {
         match *law {
             RowLaw::Unilateral => {
-                if !cone_normal[i] {
+                if !on_cone {
                     nonneg.push((vec![(i, -1.0)], 0.0));
                 }
             }

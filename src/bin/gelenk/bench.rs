@@ -160,7 +160,7 @@ impl BenchTarget {
             let options = scene.world_options();
             Ok(BenchTarget::Mjcf(Box::new(scene.into_world(options).map_err(|e| e.to_string())?)))
         } else {
-            Ok(BenchTarget::Scene(Box::new(gelenk::io::scene::load_file(path).map_err(|e| e.to_string())?)))
+            Ok(BenchTarget::Scene(Box::new(crate::progress::load_scene(path)?)))
         }
     }
 

@@ -8,6 +8,7 @@ mod corpus;
 mod dynamics;
 mod inspect;
 mod problems;
+mod progress;
 mod report;
 mod simulate;
 mod view;

@@ -2,7 +2,6 @@
 //! glTF) and `gelenk render` (a filmstrip of a scene as a PNG).
 
 use gelenk::io::scene;
-use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 
 // Arguments of `gelenk simulate`.
@@ -53,7 +52,7 @@ pub struct RenderArgs {
 
 /// Runs `gelenk simulate`: a progress bar on a terminal's stderr, then the summary on stdout.
 pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
-    let mut loaded = scene::load_file(&args.scene).map_err(|e| e.to_string())?;
+    let mut loaded = crate::progress::load_scene(&args.scene)?;
     let solvers =
         args.solver.as_deref().map(scene::parse_solvers).transpose().map_err(|e| format!("--solver: {e}"))?;
     // Created before the run: a path that cannot be written fails now, not after it.
@@ -72,11 +71,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         record_frames: glb.is_some(),
         softness: args.softness,
     };
-    let terminal = std::io::stderr().is_terminal();
-    let summary = scene::run(&mut loaded, &options, progress_bar(terminal)).map_err(|e| e.to_string())?;
-    if terminal {
-        eprintln!();
-    }
+    let summary = scene::run(&mut loaded, &options, crate::progress::run_bar()).map_err(|e| e.to_string())?;
     for warning in &loaded.warnings {
         eprintln!("gelenk: warning: {warning}");
     }
@@ -123,23 +118,9 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// A progress bar on stderr when it is a terminal (`terminal`), for [`scene::run`].
-pub fn progress_bar(terminal: bool) -> impl FnMut(f64) {
-    let mut shown = -1i64;
-    move |fraction| {
-        let percent = (fraction * 100.0).floor() as i64;
-        if terminal && percent != shown {
-            shown = percent;
-            let filled = (percent / 2) as usize;
-            eprint!("\r[{}{}] {percent:3}%", "#".repeat(filled), " ".repeat(50 - filled.min(50)));
-            let _ = std::io::stderr().flush();
-        }
-    }
-}
-
 /// Runs `gelenk render`.
 pub fn render(args: &RenderArgs) -> Result<(), String> {
-    let mut loaded = scene::load_file(&args.scene).map_err(|e| e.to_string())?;
+    let mut loaded = crate::progress::load_scene(&args.scene)?;
     let options =
         gelenk::render::RenderOptions { frames: args.frames, duration: args.duration, ..Default::default() };
     let summary =

@@ -1,8 +1,6 @@
 //! `gelenk view`: run a scene file and write its player, one self-contained HTML page.
 
-use crate::simulate::progress_bar;
 use gelenk::io::scene;
-use std::io::IsTerminal;
 use std::path::PathBuf;
 
 // Arguments of `gelenk view`.
@@ -27,7 +25,7 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
     if args.every == Some(0) {
         return Err("--every must be at least 1".to_string());
     }
-    let mut loaded = scene::load_file(&args.scene).map_err(|e| e.to_string())?;
+    let mut loaded = crate::progress::load_scene(&args.scene)?;
     let out = match &args.out {
         Some(out) => out.clone(),
         None => {
@@ -44,11 +42,7 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
         record_frames: true,
         ..scene::RunOptions::default()
     };
-    let terminal = std::io::stderr().is_terminal();
-    let summary = scene::run(&mut loaded, &options, progress_bar(terminal)).map_err(|e| e.to_string())?;
-    if terminal {
-        eprintln!();
-    }
+    let summary = scene::run(&mut loaded, &options, crate::progress::run_bar()).map_err(|e| e.to_string())?;
     for warning in &loaded.warnings {
         eprintln!("gelenk: warning: {warning}");
     }

@@ -8,7 +8,9 @@ mod ground;
 use super::schema::{Document, DrivenName, VehicleSection};
 use super::source::Source;
 use super::values::{Count, Finite, MaterialRef, NonNegative, V3};
-use super::{Location, RecordOptions, Scene, SceneError, ScriptedVehicle, TimedCommand, INTEGRATORS};
+use super::{
+    Location, RecordOptions, Scene, SceneError, ScriptedVehicle, SetUpProgress, TimedCommand, INTEGRATORS,
+};
 use crate::constraints::{ContactParameters, JointLimitParameters};
 use crate::io::limits::ReadLimits;
 use crate::math::{Transform, Vec3};
@@ -28,7 +30,11 @@ pub(super) struct Overrides {
 }
 
 /// Checks the scene's text and builds its world.
-pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, SceneError> {
+pub(super) fn build(
+    source: Source,
+    overrides: &Overrides,
+    progress: &mut dyn FnMut(SetUpProgress),
+) -> Result<Scene, SceneError> {
     if source.text.trim_start().starts_with('<') {
         let message =
             "this is XML (a URDF or MJCF file?), not a scene: scene files are TOML (see models/*.toml)";
@@ -58,7 +64,16 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
             "the scene is empty: it has no [[ground]], [[body]] or [[urdf]] (see models/*.toml)".to_string(),
         ));
     }
-    let mut b = Builder { src: &source, materials: HashMap::new(), names: HashSet::new(), bodies: 0 };
+    let total = doc.urdf.iter().map(|u| copies_of(u.get_ref().count)).sum::<usize>()
+        + doc.body.iter().map(|b| copies_of(b.get_ref().count)).sum::<usize>();
+    let mut b = Builder {
+        src: &source,
+        materials: HashMap::new(),
+        names: HashSet::new(),
+        progress: SetUpProgress { built: 0, total },
+        report: progress,
+        bodies: 0,
+    };
 
     // World options.
     let w = &doc.world;
@@ -194,6 +209,10 @@ struct Builder<'a> {
     src: &'a Source,
     materials: HashMap<String, u32>,
     names: HashSet<String>,
+    /// The bodies and models built so far, of all the scene has.
+    progress: SetUpProgress,
+    /// Told after each one.
+    report: &'a mut dyn FnMut(SetUpProgress),
     /// Moving bodies the entries so far create (at most [`MAX_SCENE_BODIES`]).
     bodies: usize,
 }
@@ -203,7 +222,22 @@ struct Builder<'a> {
 /// gigabytes in its set-up before the first step.
 const MAX_SCENE_BODIES: usize = 200_000;
 
-impl Builder<'_> {
+/// How many copies `count` makes (1 without it).
+fn copies_of(count: Option<Count>) -> usize {
+    match count {
+        None => 1,
+        Some(Count::Row(n)) => n,
+        Some(Count::Grid([x, y, z])) => x * y * z,
+    }
+}
+
+impl<'a> Builder<'a> {
+    /// Counts one more body or model built and reports it.
+    fn built_one(&mut self) {
+        self.progress.built += 1;
+        (self.report)(self.progress);
+    }
+
     fn material(&self, m: &MaterialRef, span: Range<usize>) -> Result<u32, SceneError> {
         match m {
             MaterialRef::Index(0) => Ok(0),
@@ -248,8 +282,9 @@ impl Builder<'_> {
         }
     }
 
-    fn world_error(&self, span: Range<usize>) -> impl Fn(StepError) -> SceneError + '_ {
-        move |source| SceneError::World { at: self.src.location(span.clone()), source: Box::new(source) }
+    fn world_error(&self, span: Range<usize>) -> impl Fn(StepError) -> SceneError + 'a {
+        let src = self.src;
+        move |source| SceneError::World { at: src.location(span.clone()), source: Box::new(source) }
     }
 
     fn vehicle(&self, world: &mut World, v: &Spanned<VehicleSection>) -> Result<ScriptedVehicle, SceneError> {

@@ -388,14 +388,14 @@ impl Scene {
 
     /// Builds the scene again from its text: the world back at its initial state.
     pub fn reset(&mut self) -> Result<(), SceneError> {
-        *self = build::build(self.source.clone(), &Overrides::default())?;
+        *self = build::build(self.source.clone(), &Overrides::default(), &mut |_| {})?;
         Ok(())
     }
 
     /// A new copy of the scene built from its text: its world at the initial state, this one
     /// left as it is (batched rollouts build one world per rollout this way).
     pub fn rebuilt(&self) -> Result<Scene, SceneError> {
-        build::build(self.source.clone(), &Overrides::default())
+        build::build(self.source.clone(), &Overrides::default(), &mut |_| {})
     }
 
     /// Builds the scene again from its text with `dt` and the solver chain replaced where given
@@ -405,14 +405,33 @@ impl Scene {
         dt: Option<f64>,
         solvers: Option<Vec<SolverKind>>,
     ) -> Result<(), SceneError> {
-        *self = build::build(self.source.clone(), &Overrides { dt, solvers })?;
+        *self = build::build(self.source.clone(), &Overrides { dt, solvers }, &mut |_| {})?;
         Ok(())
     }
+}
+
+/// How far the building of a scene has come: `built` of its `total` bodies and models, each
+/// copy of a `count` counted once (grounds and vehicles are not counted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SetUpProgress {
+    /// Bodies and models built so far.
+    pub built: usize,
+    /// Bodies and models the scene has.
+    pub total: usize,
 }
 
 /// Loads a scene file, at most [`crate::io::limits::ReadLimits::max_bytes`] of it (the default
 /// limits; the text's tables and arrays nest at most `max_data_depth` deep).
 pub fn load_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+    load_file_with_progress(path, |_| {})
+}
+
+/// [`load_file`], telling `progress` after each body or model is built (a scene of many
+/// copies takes seconds to build: `gelenk` shows a progress bar on a terminal with it).
+pub fn load_file_with_progress(
+    path: impl AsRef<Path>,
+    mut progress: impl FnMut(SetUpProgress),
+) -> Result<Scene, SceneError> {
     let path = path.as_ref();
     let file = path.display().to_string();
     let text = crate::io::limits::ReadLimits::default()
@@ -421,7 +440,7 @@ pub fn load_file(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let source = Source { file, path: Some(path.to_path_buf()), stem, text, base_dir };
-    build::build(source, &Overrides::default())
+    build::build(source, &Overrides::default(), &mut progress)
 }
 
 /// Loads a scene from text; relative paths in it resolve against `base_dir`.
@@ -433,7 +452,7 @@ pub fn load_str(text: &str, base_dir: impl AsRef<Path>) -> Result<Scene, SceneEr
         text: text.to_string(),
         base_dir: base_dir.as_ref().to_path_buf(),
     };
-    build::build(source, &Overrides::default())
+    build::build(source, &Overrides::default(), &mut |_| {})
 }
 
 /// Parses a solver chain written as in `[world] solver` or on a command line: names separated

@@ -226,6 +226,7 @@ impl Builder<'_> {
                     source: Box::new(source),
                 })?;
             }
+            self.built_one();
         }
         Ok(warnings)
     }
@@ -350,6 +351,7 @@ impl Builder<'_> {
                     mb.state.v = v;
                 }
             }
+            self.built_one();
         }
         Ok(())
     }
