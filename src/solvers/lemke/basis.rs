@@ -338,3 +338,66 @@ impl Basis {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solvers::lemke::columns::Csc;
+    use nalgebra::DMatrix;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    /// The dense basis B (columns of `[I, −M, −d]` at their positions).
+    fn dense_basis(basis: &Basis, cols: &Columns) -> DMatrix<f64> {
+        let n = cols.n();
+        let mut b = DMatrix::zeros(n, n);
+        for (p, &var) in basis.vars.iter().enumerate() {
+            cols.for_each(var, |i, v| b[(i, p)] += v);
+        }
+        b
+    }
+
+    #[test]
+    fn solves_and_transposed_solves_match_the_basis_through_updates_and_refactorizations() {
+        let mut rng = StdRng::seed_from_u64(0xb7a5);
+        let n = 12;
+        let m = DMatrix::from_fn(
+            n,
+            n,
+            |_, _| if rng.random_bool(0.4) { rng.random_range(-2.0..2.0) } else { 0.0 },
+        );
+        let m = m + DMatrix::identity(n, n) * 3.0;
+        let cols = Columns { m: Csc::from_dense(&m), d: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect() };
+        let mut basis = Basis::identity(n);
+        let (mut x, mut y, mut alpha) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // Bring in z0 and z_j's at random positions, refactorizing now and then: each basis
+        // stays non-singular (M is diagonally dominant, d generic).
+        let mut entering: Vec<usize> = (n..2 * n + 1).collect();
+        for step in 0..10 {
+            let var = entering.remove(rng.random_range(0..entering.len()));
+            basis.solve_column(&cols, var, &mut alpha);
+            let r = (0..n)
+                .filter(|&p| basis.vars[p] < n)
+                .max_by(|&a, &b| alpha[a].abs().total_cmp(&alpha[b].abs()));
+            let Some(r) = r else { break };
+            basis.replace(r, var, &alpha);
+            if step % 4 == 3 {
+                basis.refactor(&cols).unwrap();
+            }
+            let b = dense_basis(&basis, &cols);
+            let c: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            basis.solve(&cols, &c, &mut x);
+            basis.solve_transpose(&cols, &c, &mut y);
+            let bx = &b * DMatrix::from_column_slice(n, 1, &x);
+            let bty = b.transpose() * DMatrix::from_column_slice(n, 1, &y);
+            for i in 0..n {
+                assert!((bx[i] - c[i]).abs() < 1e-10, "step {step}: (B x − c)_{i} = {:e}", bx[i] - c[i]);
+                assert!((bty[i] - c[i]).abs() < 1e-10, "step {step}: (Bᵀ y − c)_{i} = {:e}", bty[i] - c[i]);
+            }
+        }
+        assert!(
+            basis.updates() > 0 && basis.factorized_size() > 0,
+            "both the etas and the LU were exercised"
+        );
+    }
+}

@@ -121,7 +121,49 @@ impl<'a> Path<'a> {
         }
         self.basis.solve_column(self.cols, z0, &mut self.alpha);
         let row = self.first_row();
-        let mut leaving = self.pivot(row, z0, true);
+        let leaving = self.pivot(row, z0, true);
+        self.follow(leaving)
+    }
+
+    /// A path that starts from the complementary basis `vars` (z0 not among them) of an earlier
+    /// path whose final values are slightly negative (its degenerate pivots' rounding), with
+    /// this path's covering vector d = B·1 (`cols.d`, from [`covering_of_basis`]): then
+    /// B⁻¹(−d) = −1, z0 enters at the most negative value, lifting every value to zero or more,
+    /// and the path goes on from there until z0 leaves again — usually after a few pivots, as
+    /// z0 starts at the size of the rounding.
+    pub fn restart(&mut self, vars: &[usize]) -> PathEnd {
+        let n = self.cols.n();
+        let z0 = 2 * n;
+        for var in 0..n {
+            self.basis.position[var] = NONE;
+        }
+        for (p, &var) in vars.iter().enumerate() {
+            self.basis.vars[p] = var;
+            self.basis.position[var] = p;
+        }
+        self.basis_hash = vars.iter().fold(0, |h, &var| h ^ key(var));
+        if let Err(singular) = self.refactor() {
+            return PathEnd::Singular(singular);
+        }
+        self.basis.solve_column(self.cols, z0, &mut self.alpha);
+        // z0's level t lifts x − t α ≥ 0: the row with the largest −x_p / |α_p| leaves.
+        let (x, alpha) = (&self.x, &self.alpha);
+        let row = (0..n)
+            .filter(|&p| alpha[p] < 0.0)
+            .min_by(|&a, &b| (x[a] / -alpha[a]).total_cmp(&(x[b] / -alpha[b])));
+        match row {
+            Some(row) if x[row] < 0.0 => {
+                let leaving = self.pivot(row, z0, true);
+                self.follow(leaving)
+            }
+            _ => PathEnd::Solved,
+        }
+    }
+
+    /// Follows the path on from the pivot that took `leaving` out of the basis.
+    fn follow(&mut self, mut leaving: usize) -> PathEnd {
+        let n = self.cols.n();
+        let z0 = 2 * n;
         loop {
             if leaving == z0 {
                 return PathEnd::Solved;
@@ -369,4 +411,14 @@ fn narrow(ties: &mut Vec<usize>, alpha: &[f64], value: impl Fn(usize) -> f64) {
     let smallest = ties.iter().map(|&i| scaled(i)).fold(f64::INFINITY, f64::min);
     let limit = smallest + 1e-9 * largest;
     ties.retain(|&i| scaled(i) <= limit);
+}
+
+/// The covering vector d = B·1 of a path restarted from the basis `vars`: the sum of the basic
+/// columns of `[I, −M, −d]` (by row).
+pub(super) fn covering_of_basis(cols: &Columns, vars: &[usize]) -> Vec<f64> {
+    let mut d = vec![0.0; cols.n()];
+    for &var in vars {
+        cols.for_each(var, |i, v| d[i] += v);
+    }
+    d
 }
