@@ -113,8 +113,8 @@ fn constraint_rows(
             cone_normal[c.normal] = true;
         }
     }
-    for i in 0..n {
-        match problem.laws[i] {
+    for (i, law) in problem.laws.iter().enumerate().take(n) {
+        match *law {
             RowLaw::Unilateral => {
                 if !cone_normal[i] {
                     nonneg.push((vec![(i, -1.0)], 0.0));
