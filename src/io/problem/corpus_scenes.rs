@@ -24,6 +24,16 @@ pub enum SceneSource {
     /// An MJCF file, relative to the models directory, stepped by the world of
     /// [`crate::io::mjcf::MjcfScene::into_world`].
     Mjcf(&'static str),
+    /// `count` copies of an MJCF file's model (relative to the models directory, one free
+    /// root) dropped onto its static geometry one above the other, 1.8 m apart (more than the
+    /// humanoid is tall) and each turned
+    /// by 60° about the vertical, so that they land on each other.
+    MjcfPile {
+        /// The MJCF file.
+        file: &'static str,
+        /// Copies.
+        count: usize,
+    },
     /// `count` 0.1 m, 1 kg cubes stacked on a plane (the stability report's stacks).
     Stack {
         /// Cubes.
@@ -81,9 +91,12 @@ count = [12, 12, 3]
 spacing = [0.1, 0.1, 0.0799]
 "#;
 
+/// MuJoCo's passive humanoid (MJCF, relative to the models directory).
+const HUMANOID: &str = "../benches/peers/humanoid_fall.xml";
+
 /// The corpus's scenes: free stacks and pyramids, the stability report's hard cases at 1/60 s
 /// and 1/1000 s, piles of boxes and balls, a ragdoll, a ragdoll pile, MuJoCo's humanoid falling
-/// (MJCF), the buggy on terrain, and a grid of 432 resting boxes.
+/// (MJCF) and a pile of four of them, the buggy on terrain, and a grid of 432 resting boxes.
 pub fn corpus_scenes() -> Vec<CorpusScene> {
     let pyramid4 = FrictionModel::Pyramid { facets: 4 };
     let s = |family, name, source, steps, every| CorpusScene { family, name, source, steps, every };
@@ -106,7 +119,8 @@ pub fn corpus_scenes() -> Vec<CorpusScene> {
         s("pile", "pile", SceneSource::File("pile.toml"), 600, 10),
         s("ragdoll", "ragdoll-fall", SceneSource::File("ragdoll_fall.toml"), 1000, 15),
         s("ragdoll-crowd", "ragdoll-pile", SceneSource::File("ragdoll_pile.toml"), 2000, 50),
-        s("humanoid", "humanoid-fall", SceneSource::Mjcf("../benches/peers/humanoid_fall.xml"), 1500, 40),
+        s("humanoid", "humanoid-fall", SceneSource::Mjcf(HUMANOID), 1500, 40),
+        s("humanoid-crowd", "humanoid-pile", SceneSource::MjcfPile { file: HUMANOID, count: 4 }, 1500, 40),
         s("vehicle", "buggy-terrain", SceneSource::File("buggy_terrain.toml"), 1000, 15),
         s("grid", "box-grid", SceneSource::Text(BOX_GRID), 10, 1),
     ]
@@ -180,6 +194,33 @@ pub fn corpus_world(source: &SceneSource, models: &Path) -> Result<CorpusWorld, 
             let loaded = crate::io::mjcf::load_file(models.join(file)).map_err(|e| e.to_string())?;
             let options = loaded.world_options();
             loaded.into_world(options).map_err(|e| e.to_string())?
+        }
+        SceneSource::MjcfPile { file, count } => {
+            let loaded = crate::io::mjcf::load_file(models.join(file)).map_err(|e| e.to_string())?;
+            let free_root =
+                loaded.model.nbodies() > 1 && matches!(loaded.model.joint(1), crate::model::Joint::Free);
+            if !free_root {
+                return Err(format!("{file}: a pile needs a model with a free root"));
+            }
+            let options = loaded.world_options();
+            let (model, q0) = (loaded.model.clone(), loaded.q0.clone());
+            let mut w = loaded.into_world(options).map_err(|e| e.to_string())?;
+            for k in 1..count {
+                let name = format!("{}{k}", model.name());
+                let m = w
+                    .add_multibody(&name, model.clone(), &MeshOptions::default())
+                    .map_err(|e| e.to_string())?;
+                let q = &mut w.multibody_mut(m).state.q;
+                q.copy_from(&q0);
+                // Free root: position, then the quaternion (i, j, k, w).
+                q[2] += 1.8 * k as f64;
+                let turn =
+                    UnitQuaternion::from_axis_angle(&Vec3::z_axis(), std::f64::consts::FRAC_PI_3 * k as f64);
+                let r =
+                    turn * UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[6], q[3], q[4], q[5]));
+                q.rows_mut(3, 4).copy_from_slice(&[r.i, r.j, r.k, r.w]);
+            }
+            w
         }
         SceneSource::Stack { count, dt } => {
             let mut w = hard_world(dt).map_err(|e| e.to_string())?;

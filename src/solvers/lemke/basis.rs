@@ -55,8 +55,10 @@ pub(super) struct Basis {
     eta_start: Vec<usize>,
     eta_index: Vec<usize>,
     eta_value: Vec<f64>,
-    /// Scratch: a right-hand side by row, and the k-vector of the LU solve.
+    /// Scratch: a right-hand side by row, a right-hand side by position (transposed solves),
+    /// and the k-vector of the LU solve.
     work: Vec<f64>,
+    work_by_position: Vec<f64>,
     small: Vec<f64>,
     /// Refactorizations done.
     pub refactorizations: usize,
@@ -88,7 +90,10 @@ impl Basis {
             lu: Vec::new(),
             perm: Vec::new(),
             perm_inv: Vec::new(),
-            stack: MemBuffer::new(solve::solve_in_place_scratch::<usize, f64>(n.max(1), 1, Par::Seq)),
+            stack: MemBuffer::new(
+                solve::solve_in_place_scratch::<usize, f64>(n.max(1), 1, Par::Seq)
+                    .or(solve::solve_transpose_in_place_scratch::<usize, f64>(n.max(1), 1, Par::Seq)),
+            ),
             factor_stack: MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
             factor_stack_k: 0,
             eta_pos: Vec::new(),
@@ -97,6 +102,7 @@ impl Basis {
             eta_index: Vec::new(),
             eta_value: Vec::new(),
             work: vec![0.0; n],
+            work_by_position: vec![0.0; n],
             small: vec![0.0; n],
             refactorizations: 0,
         }
@@ -163,6 +169,60 @@ impl Basis {
             if p != NONE {
                 x[p] = self.work[i];
             }
+        }
+    }
+
+    /// Solves Bᵀ y = c: `c` by position, `y` by row (BTRAN). Row p of B⁻¹ is yᵀ for c = e_p.
+    ///
+    /// With B = B_0 E_1 ⋯ E_t, Bᵀ = E_tᵀ ⋯ E_1ᵀ B_0ᵀ: c is passed through E_t⁻ᵀ, …, E_1⁻ᵀ (E_sᵀ is
+    /// the identity with row r_s replaced by the eta, so only entry r_s changes, by a dot
+    /// product), then B_0ᵀ y = v is solved: a row whose w is basic in B_0 (a unit column at
+    /// position p) has y_i = v_p; the rows of B_N follow from B_Nᵀ y_N = v_J − B_Sᵀ y_S over the
+    /// non-unit columns J, by the transposed LU solve.
+    pub fn solve_transpose(&mut self, cols: &Columns, c: &[f64], y: &mut [f64]) {
+        debug_assert!(c.len() == self.n && y.len() == self.n);
+        let v = &mut self.work_by_position;
+        v.copy_from_slice(c);
+        for t in (0..self.eta_pos.len()).rev() {
+            let r = self.eta_pos[t];
+            let range = self.eta_start[t]..self.eta_start[t + 1];
+            let dot: f64 = self.eta_index[range.clone()]
+                .iter()
+                .zip(&self.eta_value[range])
+                .map(|(&i, &e)| e * v[i])
+                .sum();
+            v[r] = (v[r] - dot) / self.eta_pivot[t];
+        }
+        for (i, &p) in self.w_pos.iter().enumerate() {
+            y[i] = if p != NONE { v[p] } else { 0.0 };
+        }
+        let k = self.rows_n.len();
+        if k == 0 {
+            return;
+        }
+        let rhs = &mut self.small[..k];
+        let row_slot = &self.row_slot;
+        for c in 0..k {
+            let mut sum = v[self.col_pos[c]];
+            cols.for_each(self.col_var[c], |i, value| {
+                if row_slot[i] == NONE {
+                    sum -= value * y[i];
+                }
+            });
+            rhs[c] = sum;
+        }
+        let lu = MatRef::from_column_major_slice(&self.lu[..k * k], k, k);
+        let perm = PermRef::new_checked(&self.perm, &self.perm_inv, k);
+        solve::solve_transpose_in_place(
+            lu,
+            lu,
+            perm,
+            MatMut::from_column_major_slice_mut(rhs, k, 1),
+            Par::Seq,
+            MemStack::new(&mut self.stack),
+        );
+        for (slot, &i) in self.rows_n.iter().enumerate() {
+            y[i] = rhs[slot];
         }
     }
 
@@ -276,5 +336,68 @@ impl Basis {
         } else {
             Err(Singular { ratio })
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solvers::lemke::columns::Csc;
+    use nalgebra::DMatrix;
+    use rand::rngs::StdRng;
+    use rand::{Rng, SeedableRng};
+
+    /// The dense basis B (columns of `[I, −M, −d]` at their positions).
+    fn dense_basis(basis: &Basis, cols: &Columns) -> DMatrix<f64> {
+        let n = cols.n();
+        let mut b = DMatrix::zeros(n, n);
+        for (p, &var) in basis.vars.iter().enumerate() {
+            cols.for_each(var, |i, v| b[(i, p)] += v);
+        }
+        b
+    }
+
+    #[test]
+    fn solves_and_transposed_solves_match_the_basis_through_updates_and_refactorizations() {
+        let mut rng = StdRng::seed_from_u64(0xb7a5);
+        let n = 12;
+        let m = DMatrix::from_fn(
+            n,
+            n,
+            |_, _| if rng.random_bool(0.4) { rng.random_range(-2.0..2.0) } else { 0.0 },
+        );
+        let m = m + DMatrix::identity(n, n) * 3.0;
+        let cols = Columns { m: Csc::from_dense(&m), d: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect() };
+        let mut basis = Basis::identity(n);
+        let (mut x, mut y, mut alpha) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // Bring in z0 and z_j's at random positions, refactorizing now and then: each basis
+        // stays non-singular (M is diagonally dominant, d generic).
+        let mut entering: Vec<usize> = (n..2 * n + 1).collect();
+        for step in 0..10 {
+            let var = entering.remove(rng.random_range(0..entering.len()));
+            basis.solve_column(&cols, var, &mut alpha);
+            let r = (0..n)
+                .filter(|&p| basis.vars[p] < n)
+                .max_by(|&a, &b| alpha[a].abs().total_cmp(&alpha[b].abs()));
+            let Some(r) = r else { break };
+            basis.replace(r, var, &alpha);
+            if step % 4 == 3 {
+                basis.refactor(&cols).unwrap();
+            }
+            let b = dense_basis(&basis, &cols);
+            let c: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
+            basis.solve(&cols, &c, &mut x);
+            basis.solve_transpose(&cols, &c, &mut y);
+            let bx = &b * DMatrix::from_column_slice(n, 1, &x);
+            let bty = b.transpose() * DMatrix::from_column_slice(n, 1, &y);
+            for i in 0..n {
+                assert!((bx[i] - c[i]).abs() < 1e-10, "step {step}: (B x − c)_{i} = {:e}", bx[i] - c[i]);
+                assert!((bty[i] - c[i]).abs() < 1e-10, "step {step}: (Bᵀ y − c)_{i} = {:e}", bty[i] - c[i]);
+            }
+        }
+        assert!(
+            basis.updates() > 0 && basis.factorized_size() > 0,
+            "both the etas and the LU were exercised"
+        );
     }
 }

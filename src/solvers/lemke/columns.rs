@@ -38,7 +38,13 @@ impl Csc {
         Self { n, start, rows: Vec::with_capacity(nonzeros), values: Vec::with_capacity(nonzeros) }
     }
 
+    /// Number of stored entries.
+    pub fn nonzeros(&self) -> usize {
+        self.values.len()
+    }
+
     /// Appends entry (i, v) to the column being filled.
+    #[inline]
     pub fn push(&mut self, i: usize, v: f64) {
         self.rows.push(i);
         self.values.push(v);

@@ -160,6 +160,13 @@ fn variables(problem: &ConstraintProblem, facets: usize) -> Variables {
 }
 
 /// [`lcp_of`] with M by sparse columns.
+///
+/// Consecutive variables whose columns of C draw on the same impulse rows form a group (a
+/// contact's k facet impulses share its two friction rows; a bilateral row's two variables its
+/// one row). For each group the products g_r = Cᵀ (A + R) e_r of its rows r are formed once,
+/// in dense scratch over the rows they touch, and each of its columns of M is the combination
+/// Σ_r C_rj g_r plus its couplings E_j: a contact's facets cost one pass over their shared
+/// pattern each instead of a product with A each.
 pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> SparseLcp {
     let Variables { columns, extra, e_entries, c0 } = variables(problem, facets);
     let n = problem.rows();
@@ -173,7 +180,8 @@ pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> Spars
     for &(i, x) in &e_entries {
         q[i] += x;
     }
-    // A + R by columns, and the LCP variables each impulse row feeds (Cᵀ by columns).
+    // A + R by columns (symmetric: column r is row r), and the LCP variables each impulse row
+    // feeds (Cᵀ by columns).
     let a = Csc::from_dense(&a);
     let mut vars_of_row: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
     for (j, col) in columns.iter().enumerate() {
@@ -185,53 +193,79 @@ pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> Spars
     for &(i, j, x) in &extra {
         extra_of_column[j].push((i, x));
     }
-    // Column j of M = Cᵀ ((A + R) C_j) + E_j, accumulated in dense scratch over touched rows.
-    let mut mm = Csc::with_capacity(m, 0);
-    let (mut ac, mut ac_rows) = (vec![0.0; n], Vec::new());
+    let same_rows = |i: usize, j: usize| {
+        columns[i].len() == columns[j].len() && columns[i].iter().zip(&columns[j]).all(|(a, b)| a.0 == b.0)
+    };
+    // g_r for the (at most two, C having at most two entries per column) rows of a group, by
+    // LCP variable over the union of their patterns; then one column at a time.
+    let mut g = [vec![0.0; m], vec![0.0; m]];
+    let mut touched = Vec::new();
+    let mut seen = vec![false; m];
     let (mut col, mut col_rows) = (vec![0.0; m], Vec::new());
-    let (mut ac_seen, mut col_seen) = (vec![false; n], vec![false; m]);
-    for j in 0..m {
-        for &(r, x) in &columns[j] {
+    let mut mm = Csc::with_capacity(m, a.nonzeros() * 8);
+    let mut j = 0;
+    while j < m {
+        let mut end = j + 1;
+        while end < m && same_rows(j, end) {
+            end += 1;
+        }
+        debug_assert!(columns[j].len() <= 2, "C has at most two entries per column");
+        for (slot, &(r, _)) in columns[j].iter().enumerate() {
             let (rows, values) = a.column(r);
-            for (&i, &v) in rows.iter().zip(values) {
-                if !ac_seen[i] {
-                    ac_seen[i] = true;
-                    ac_rows.push(i);
+            for (&s, &v) in rows.iter().zip(values) {
+                for &(i, x) in &vars_of_row[s] {
+                    if !seen[i] {
+                        seen[i] = true;
+                        touched.push(i);
+                    }
+                    g[slot][i] += x * v;
                 }
-                ac[i] += v * x;
             }
         }
-        for &r in &ac_rows {
-            for &(i, x) in &vars_of_row[r] {
-                if !col_seen[i] {
-                    col_seen[i] = true;
+        for jj in j..end {
+            let c = &columns[jj];
+            match c.len() {
+                0 => {}
+                1 => {
+                    let x = c[0].1;
+                    for &i in &touched {
+                        col[i] = x * g[0][i];
+                    }
+                }
+                _ => {
+                    let (x0, x1) = (c[0].1, c[1].1);
+                    for &i in &touched {
+                        col[i] = x0 * g[0][i] + x1 * g[1][i];
+                    }
+                }
+            }
+            if !c.is_empty() {
+                col_rows.extend_from_slice(&touched);
+            }
+            // A coupling in a row outside the group's pattern adds that row (E has at most one
+            // entry per row and column).
+            for &(i, x) in &extra_of_column[jj] {
+                if !seen[i] {
                     col_rows.push(i);
                 }
-                col[i] += x * ac[r];
+                col[i] += x;
             }
-        }
-        for &(i, x) in &extra_of_column[j] {
-            if !col_seen[i] {
-                col_seen[i] = true;
-                col_rows.push(i);
+            for &i in &col_rows {
+                if col[i] != 0.0 {
+                    mm.push(i, col[i]);
+                }
+                col[i] = 0.0;
             }
-            col[i] += x;
+            mm.end_column();
+            col_rows.clear();
         }
-        col_rows.sort_unstable();
-        for &i in &col_rows {
-            if col[i] != 0.0 {
-                mm.push(i, col[i]);
-            }
-            col[i] = 0.0;
-            col_seen[i] = false;
+        for &i in &touched {
+            g[0][i] = 0.0;
+            g[1][i] = 0.0;
+            seen[i] = false;
         }
-        mm.end_column();
-        for &r in &ac_rows {
-            ac[r] = 0.0;
-            ac_seen[r] = false;
-        }
-        ac_rows.clear();
-        col_rows.clear();
+        touched.clear();
+        j = end;
     }
     SparseLcp { m: mm, q, c: columns, c0 }
 }

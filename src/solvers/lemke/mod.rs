@@ -11,7 +11,10 @@
 //!   every row and column of M near unit size; the unscaled problem and other covering vectors
 //!   are tried when a path fails.
 //! - The answer is verified on the original LCP; one that misses the tolerance is polished by a
-//!   fresh factorization and iterative refinement of the final basis before it is judged.
+//!   fresh factorization and iterative refinement of the final basis. If the basis itself is
+//!   slightly infeasible (basic values some 1e-9 below zero after hundreds of degenerate
+//!   pivots), a path is restarted from it with the covering vector B·1, which lifts every
+//!   value with one z0 and ends where z0 leaves again ([`path::Path::restart`]).
 //! - A path that leaves along a secondary ray returns the ray with its check ([`RayCertificate`]):
 //!   the ray's conditions recomputed from M and q, and whether its direction is a Farkas proof
 //!   that the LCP has no feasible point (then no other covering vector is tried).
@@ -34,7 +37,7 @@ use basis::NONE;
 use columns::{Columns, Csc};
 use lcp::sparse_lcp_of;
 use nalgebra::{DMatrix, DVector};
-use path::{Path, PathEnd, PathOptions};
+use path::{covering_of_basis, Path, PathEnd, PathOptions};
 use scaling::Scaling;
 
 /// Options of Lemke's method.
@@ -74,10 +77,15 @@ pub struct LemkeReport {
     pub residual: f64,
     /// Whether the answer was polished (fresh factorization and iterative refinement).
     pub polished: bool,
+    /// Paths restarted from a final basis that polishing left outside the tolerance.
+    pub restarts: usize,
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
     /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
     pub near_solution: bool,
 }
+
+/// Paths restarted from the final basis of a path whose answer misses the tolerance.
+const RESTARTS: usize = 2;
 
 /// The paths tried in order: (equilibrated, covering vector). The covering vectors are in the
 /// units of the LCP the path runs on.
@@ -216,6 +224,30 @@ fn solve_sparse(
             let polished_residual = natural_residual(m, q, &polished);
             if polished_residual < residual {
                 (z, residual) = (polished, polished_residual);
+            }
+            // The final basis itself is slightly infeasible: a path restarted from it (and once
+            // more from that one's end), the best point kept.
+            let mut vars = path.basis.vars.clone();
+            for _ in 0..RESTARTS {
+                if residual <= tolerance {
+                    break;
+                }
+                let restart_cols = Columns { m: cols.m.clone(), d: covering_of_basis(&cols, &vars) };
+                let mut restart = Path::new(&restart_cols, &q_scaled, path_options);
+                let restart_end = restart.restart(&vars);
+                report.restarts += 1;
+                report.pivots += restart.pivots;
+                report.lex_solves += restart.lex_solves;
+                report.refactorizations += restart.basis.refactorizations;
+                if restart_end != PathEnd::Solved {
+                    break;
+                }
+                let restarted = z_of(&restart);
+                let restarted_residual = natural_residual(m, q, &restarted);
+                if restarted_residual < residual {
+                    (z, residual) = (restarted, restarted_residual);
+                }
+                vars.copy_from_slice(&restart.basis.vars);
             }
         }
         if residual <= tolerance {

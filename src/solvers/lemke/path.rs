@@ -8,7 +8,8 @@
 //! tie, the one whose row of `B⁻¹ / α_i` is lexicographically smallest, which is the exact
 //! outcome of perturbing q by (ε, ε², …, εⁿ) and never cycles. Column j of B⁻¹ is read by a
 //! solve with e_j — or for free when w_j is basic at position p, as then B⁻¹ e_j = e_p — and
-//! only as many columns are read as the tie needs.
+//! only as many columns are read as the tie needs; a tie that needs more solves than it has rows
+//! reads the tied rows of B⁻¹ instead (transposed solves).
 
 use super::basis::{Basis, Singular, NONE};
 use super::columns::Columns;
@@ -66,6 +67,10 @@ pub(super) struct Path<'a> {
     unit: Vec<f64>,
     column: Vec<f64>,
     ties: Vec<usize>,
+    /// Rows of B⁻¹ of tied positions (`tie_positions`), for long tie-breaks.
+    rows: Vec<f64>,
+    tie_positions: Vec<usize>,
+    row_of_tie: Vec<usize>,
     /// Zobrist hash of the set of basic variables, and the hashes seen on this path.
     basis_hash: u64,
     seen: std::collections::HashSet<u64>,
@@ -99,6 +104,9 @@ impl<'a> Path<'a> {
             unit: vec![0.0; n],
             column: vec![0.0; n],
             ties: Vec::new(),
+            rows: Vec::new(),
+            tie_positions: Vec::new(),
+            row_of_tie: vec![NONE; n],
             basis_hash: (0..n).fold(0, |h, var| h ^ key(var)),
             seen: std::collections::HashSet::new(),
         }
@@ -113,7 +121,49 @@ impl<'a> Path<'a> {
         }
         self.basis.solve_column(self.cols, z0, &mut self.alpha);
         let row = self.first_row();
-        let mut leaving = self.pivot(row, z0, true);
+        let leaving = self.pivot(row, z0, true);
+        self.follow(leaving)
+    }
+
+    /// A path that starts from the complementary basis `vars` (z0 not among them) of an earlier
+    /// path whose final values are slightly negative (its degenerate pivots' rounding), with
+    /// this path's covering vector d = B·1 (`cols.d`, from [`covering_of_basis`]): then
+    /// B⁻¹(−d) = −1, z0 enters at the most negative value, lifting every value to zero or more,
+    /// and the path goes on from there until z0 leaves again — usually after a few pivots, as
+    /// z0 starts at the size of the rounding.
+    pub fn restart(&mut self, vars: &[usize]) -> PathEnd {
+        let n = self.cols.n();
+        let z0 = 2 * n;
+        for var in 0..n {
+            self.basis.position[var] = NONE;
+        }
+        for (p, &var) in vars.iter().enumerate() {
+            self.basis.vars[p] = var;
+            self.basis.position[var] = p;
+        }
+        self.basis_hash = vars.iter().fold(0, |h, &var| h ^ key(var));
+        if let Err(singular) = self.refactor() {
+            return PathEnd::Singular(singular);
+        }
+        self.basis.solve_column(self.cols, z0, &mut self.alpha);
+        // z0's level t lifts x − t α ≥ 0: the row with the largest −x_p / |α_p| leaves.
+        let (x, alpha) = (&self.x, &self.alpha);
+        let row = (0..n)
+            .filter(|&p| alpha[p] < 0.0)
+            .min_by(|&a, &b| (x[a] / -alpha[a]).total_cmp(&(x[b] / -alpha[b])));
+        match row {
+            Some(row) if x[row] < 0.0 => {
+                let leaving = self.pivot(row, z0, true);
+                self.follow(leaving)
+            }
+            _ => PathEnd::Solved,
+        }
+    }
+
+    /// Follows the path on from the pivot that took `leaving` out of the basis.
+    fn follow(&mut self, mut leaving: usize) -> PathEnd {
+        let n = self.cols.n();
+        let z0 = 2 * n;
         loop {
             if leaving == z0 {
                 return PathEnd::Solved;
@@ -188,7 +238,8 @@ impl<'a> Path<'a> {
     ///
     /// Harris's two passes (Harris 1973) with the lexicographic rule for degenerate rows: the
     /// bound θ_max = min (x_i + δ) / α_i over pivot entries admits every row whose ratio is
-    /// within it (a basic value may then overshoot zero by at most δ); among them only pivots
+    /// within it (a basic value may then overshoot zero by at most δ, counted from zero: a
+    /// value already below zero has less left); among them only pivots
     /// within a factor of 10 of the largest are taken, so that a column entry that is zero up
     /// to rounding never becomes a pivot because its row's ratio happens to be smallest. Among
     /// the admitted rows, the degenerate ones (x_i ≤ δ) go to the lexicographic rule; without
@@ -201,15 +252,19 @@ impl<'a> Path<'a> {
         let eps = self.options.pivot_tolerance * a_max;
         let delta = self.x_tol;
         let value = |x: f64| if x > delta { x } else { 0.0 };
+        // A row already below zero keeps only what is left of its allowance δ, so that
+        // overshoots do not add up over degenerate pivots into a basis that is infeasible by
+        // many δ (which no refinement of the final values repairs).
         let mut theta_max = f64::INFINITY;
         for (&x, &a) in self.x.iter().zip(&self.alpha) {
             if a > eps {
-                theta_max = theta_max.min((value(x) + delta) / a);
+                theta_max = theta_max.min((value(x) + delta + x.min(0.0)) / a);
             }
         }
         if theta_max == f64::INFINITY {
             return None;
         }
+        let theta_max = theta_max.max(0.0);
         let admitted = |x: f64, a: f64| a > eps && value(x) / a <= theta_max;
         let z0_at = self.basis.position[2 * self.cols.n()];
         if z0_at != NONE && admitted(self.x[z0_at], self.alpha[z0_at]) {
@@ -242,38 +297,75 @@ impl<'a> Path<'a> {
     }
 
     /// Narrows `ties` column by column of B⁻¹ (scaled by 1/α_i) to the lexicographic minimum.
+    ///
+    /// Columns are read by solves with e_j while that is cheap: after as many solves as there
+    /// were ties, the rows of B⁻¹ of the ties left are read instead, one transposed solve each,
+    /// and the remaining columns compared from them: a tie that needs many columns (a degenerate
+    /// vertex of a pyramid of boxes can take hundreds) costs at most twice its size in solves.
     fn lexicographic_tie_break(&mut self) -> usize {
         let n = self.cols.n();
-        for j in 0..n {
-            if self.ties.len() <= 1 {
-                break;
-            }
-            let p = self.basis.position[j];
-            if p != NONE {
-                // Column j of B⁻¹ is e_p: row p has 1/α_p > 0 there, every other tied row 0.
-                if let Some(at) = self.ties.iter().position(|&i| i == p) {
-                    self.ties.swap_remove(at);
-                }
+        let column_budget = self.ties.len();
+        let mut column_solves = 0;
+        let mut j = 0;
+        while j < n && self.ties.len() > 1 {
+            if self.drop_unit_column_tie(j) {
+                j += 1;
                 continue;
+            }
+            if column_solves == column_budget {
+                break;
             }
             self.unit.fill(0.0);
             self.unit[j] = 1.0;
             self.basis.solve(self.cols, &self.unit, &mut self.column);
             self.lex_solves += 1;
-            let (column, alpha) = (&self.column, &self.alpha);
-            let scaled = |i: usize| column[i] / alpha[i];
-            let largest = self.ties.iter().fold(0.0f64, |m, &i| m.max(scaled(i).abs()));
-            if largest == 0.0 {
-                continue;
+            column_solves += 1;
+            let column = &self.column;
+            narrow(&mut self.ties, &self.alpha, |i| column[i]);
+            j += 1;
+        }
+        if j < n && self.ties.len() > 1 {
+            // Rows of B⁻¹ of the ties left: position p's in rows[t n..(t + 1) n] for
+            // t = row_of_tie[p].
+            let count = self.ties.len();
+            self.rows.resize(count * n, 0.0);
+            self.tie_positions.clear();
+            self.tie_positions.extend_from_slice(&self.ties);
+            for (t, &p) in self.tie_positions.iter().enumerate() {
+                self.row_of_tie[p] = t;
+                self.unit.fill(0.0);
+                self.unit[p] = 1.0;
+                self.basis.solve_transpose(self.cols, &self.unit, &mut self.rows[t * n..(t + 1) * n]);
+                self.lex_solves += 1;
             }
-            let smallest = self.ties.iter().map(|&i| scaled(i)).fold(f64::INFINITY, f64::min);
-            let limit = smallest + 1e-9 * largest;
-            self.ties.retain(|&i| scaled(i) <= limit);
+            while j < n && self.ties.len() > 1 {
+                if !self.drop_unit_column_tie(j) {
+                    let (rows, row_of_tie, alpha) = (&self.rows, &self.row_of_tie, &self.alpha);
+                    narrow(&mut self.ties, alpha, |p| rows[row_of_tie[p] * n + j]);
+                }
+                j += 1;
+            }
+            for &p in &self.tie_positions {
+                self.row_of_tie[p] = NONE;
+            }
         }
         // Ties left over all n columns are rounding (B⁻¹ has independent rows): take the
         // largest pivot entry.
         let alpha = &self.alpha;
         self.ties.iter().copied().max_by(|&a, &b| alpha[a].total_cmp(&alpha[b])).unwrap_or(0)
+    }
+
+    /// If w_j is basic (at position p), column j of B⁻¹ is e_p: row p has 1/α_p > 0 there and
+    /// every other tied row 0, so p leaves the ties; returns whether w_j is basic.
+    fn drop_unit_column_tie(&mut self, j: usize) -> bool {
+        let p = self.basis.position[j];
+        if p == NONE {
+            return false;
+        }
+        if let Some(at) = self.ties.iter().position(|&i| i == p) {
+            self.ties.swap_remove(at);
+        }
+        true
     }
 
     /// The value of variable `var` (0 when non-basic).
@@ -306,4 +398,27 @@ impl<'a> Path<'a> {
         }
         Ok(())
     }
+}
+
+/// Keeps the ties whose `value(i) / α_i` is the smallest, within 1e-9 of the largest magnitude
+/// (a column of zeros at every tie keeps them all).
+fn narrow(ties: &mut Vec<usize>, alpha: &[f64], value: impl Fn(usize) -> f64) {
+    let scaled = |i: usize| value(i) / alpha[i];
+    let largest = ties.iter().fold(0.0f64, |m, &i| m.max(scaled(i).abs()));
+    if largest == 0.0 {
+        return;
+    }
+    let smallest = ties.iter().map(|&i| scaled(i)).fold(f64::INFINITY, f64::min);
+    let limit = smallest + 1e-9 * largest;
+    ties.retain(|&i| scaled(i) <= limit);
+}
+
+/// The covering vector d = B·1 of a path restarted from the basis `vars`: the sum of the basic
+/// columns of `[I, −M, −d]` (by row).
+pub(super) fn covering_of_basis(cols: &Columns, vars: &[usize]) -> Vec<f64> {
+    let mut d = vec![0.0; cols.n()];
+    for &var in vars {
+        cols.for_each(var, |i, v| d[i] += v);
+    }
+    d
 }

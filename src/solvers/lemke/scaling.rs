@@ -33,11 +33,13 @@ impl Scaling {
             col_max.fill(0.0);
             for j in 0..n {
                 let (rows, values) = m.column(j);
+                let (c, mut largest) = (col[j], 0.0f64);
                 for (&i, &v) in rows.iter().zip(values) {
-                    let a = (row[i] * v * col[j]).abs();
+                    let a = (row[i] * v * c).abs();
                     row_max[i] = row_max[i].max(a);
-                    col_max[j] = col_max[j].max(a);
+                    largest = largest.max(a);
                 }
+                col_max[j] = largest;
             }
             let mut settled = true;
             for (f, &x) in row.iter_mut().zip(&row_max).chain(col.iter_mut().zip(&col_max)) {
