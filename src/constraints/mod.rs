@@ -15,12 +15,14 @@
 
 mod builder;
 mod contact;
+mod islands;
 mod joints;
 mod loops;
 
 pub use builder::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub(crate) use builder::{BuiltRows, RowsMark};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
+pub use islands::IslandPartition;
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,
     DroppedLimit, JointLimitParameters, LimitVelocities,
