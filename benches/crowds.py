@@ -1,0 +1,157 @@
+"""Crowds at game rates: the tables of docs/performance.md's section "Crowds", measured and
+written in place (between its `crowds:begin` and `crowds:end` markers; nothing else changes).
+
+1. Every step answered: `gelenk simulate SCENE --dt DT --duration D --json` for the pile scenes
+   (models/ragdoll_pile.toml, models/pile.toml, models/ragdoll_crowd.toml) with their own solver
+   chains, at dt = 1/60, 1/240 and 1/500 s: steps above the chain's tolerance, the largest
+   certified residual, the deepest penetration, islands, and the wall time per step.
+2. Against MuJoCo in the same run: piles of N = 4, 16, 64 ragdolls written as MJCF by
+   benches/ragdoll_mjcf.py, stepped by `gelenk bench world FILE.xml --json` (sleeping off, every
+   step does the full work) and by MuJoCo (`mj_step`, the same file, the same steps from the same
+   keyframe), at dt = 2 ms and 1/60 s: time per step and the ratio gelenk / MuJoCo.
+
+Not part of CI (needs `pip install mujoco` and minutes of CPU).
+
+Usage:
+    cargo build --profile ci
+    python3 benches/crowds.py [--gelenk target/ci/gelenk] [--duration 2] [--quick] [--no-write]
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.join(HERE, "..")
+DOC = os.path.join(ROOT, "docs", "performance.md")
+BEGIN, END = "<!-- crowds:begin -->", "<!-- crowds:end -->"
+DTS = [("1/60", 1 / 60), ("1/240", 1 / 240), ("1/500", 1 / 500)]
+SCENES = ["ragdoll_pile", "pile", "ragdoll_crowd"]
+# The chain and softness the ragdoll scenes use, for the MJCF piles (which carry no gelenk
+# settings: the world's default rows are hard, MuJoCo's soft).
+PILE_SETTINGS = ["--solver", "newton,clarabel", "--softness", "0.1"]
+
+
+def simulate(gelenk, scene, dt, duration):
+    out = subprocess.run(
+        [gelenk, "simulate", os.path.join(ROOT, "models", f"{scene}.toml"), "--dt", repr(dt),
+         "--duration", repr(duration), "--json"],
+        check=True, capture_output=True, text=True,
+    ).stdout
+    return json.loads(out)
+
+
+def bench_gelenk(gelenk, path, steps, extra):
+    out = subprocess.run(
+        [gelenk, "bench", "world", path, "--steps", str(steps), "--rounds", "1", "--json", *extra],
+        check=True, capture_output=True, text=True,
+    ).stdout
+    return json.loads(out)
+
+
+def bench_mujoco(path, steps):
+    """Mean µs per step of `steps` `mj_step`s from keyframe 0, and whether MuJoCo reported
+    instability (bad accelerations) or non-finite states."""
+    import mujoco
+    import numpy as np
+
+    model = mujoco.MjModel.from_xml_path(path)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    mujoco.mj_forward(model, data)
+    start = time.perf_counter()
+    mujoco.mj_step(model, data, nstep=steps)
+    elapsed = time.perf_counter() - start
+    unstable = data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0 or not np.all(np.isfinite(data.qpos))
+    return elapsed / steps * 1e6, unstable, mujoco.__version__
+
+
+def write_doc(section):
+    text = open(DOC).read()
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        _, tail = rest.split(END, 1)
+        text = head + BEGIN + "\n" + section + END + tail
+    else:
+        text = text.rstrip("\n") + "\n\n" + BEGIN + "\n" + section + END + "\n"
+    open(DOC, "w").write(text)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--gelenk", default=os.path.join(ROOT, "target", "ci", "gelenk"))
+    parser.add_argument("--duration", type=float, default=2.0, help="simulated seconds per scene run")
+    parser.add_argument("--quick", action="store_true", help="only 1/60 s, N = 4 and 16 (a smoke run)")
+    parser.add_argument("--no-write", action="store_true", help="print the section instead of writing it")
+    args = parser.parse_args()
+    command = "python3 benches/crowds.py" + (f" --duration {args.duration:g}" if args.duration != 2.0 else "")
+    dts = DTS[:1] if args.quick else DTS
+    lines = [
+        "### Crowds: every step answered (each scene's own chain)",
+        "",
+        f"`{command}` (the ci profile's `gelenk`; {args.duration:g} s simulated per run, from the drop).",
+        "",
+        "| scene | dt | steps | above tolerance | max residual (m/s) | deepest penetration (mm) "
+        "| islands (most, largest rows) | ms per step | solvers |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for scene in SCENES:
+        for label, dt in dts:
+            s = simulate(args.gelenk, scene, dt, args.duration)
+            usage = ", ".join(f"{k} {v}" for k, v in s["solver_usage"].items())
+            lines.append(
+                f"| {scene} | {label} | {s['steps']} | {s['steps_above_tolerance']} | {s['max_residual']:.1e} "
+                f"| {1e3 * s['max_penetration']:.1f} | {s['max_islands']}, {s['largest_island']} "
+                f"| {1e3 * s['wall_time'] / max(s['steps'], 1):.2f} | {usage} |"
+            )
+            print(lines[-1], flush=True)
+    lines += [
+        "",
+        "### Crowds against MuJoCo (the same MJCF file, the same run)",
+        "",
+        "Piles of N ragdolls from `python3 benches/ragdoll_mjcf.py --count N --dt DT --cone elliptic` (the 2 × 2 columns "
+        "of models/ragdoll_crowd.toml), stepped from the drop by `gelenk bench world FILE.xml` "
+        f"(sleeping off, the ragdoll scenes' settings `{' '.join(PILE_SETTINGS)}`) and by MuJoCo's "
+        "`mj_step` (its default Newton solver and soft constraints, `implicitfast`); elliptic friction "
+        "cones in both (Newton's method solves cones).",
+        "",
+        "| N | dt | steps | MuJoCo µs/step | gelenk µs/step | gelenk / MuJoCo | gelenk fallbacks "
+        "| MuJoCo stable |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    counts = [4, 16] if args.quick else [4, 16, 64]
+    version = "?"
+    with tempfile.TemporaryDirectory() as tmp:
+        for label, dt, seconds in [("2 ms", 0.002, 1.0), ("1/60", 1 / 60, 3.0)]:
+            steps = int(round(seconds / dt))
+            for n in counts:
+                path = os.path.join(tmp, f"pile{n}.xml")
+                with open(path, "w") as f:
+                    subprocess.run(
+                        [sys.executable, os.path.join(HERE, "ragdoll_mjcf.py"), "--count", str(n), "--dt", repr(dt),
+                         "--cone", "elliptic"],
+                        check=True, stdout=f,
+                    )
+                mujoco_us, unstable, version = bench_mujoco(path, steps)
+                soft = bench_gelenk(args.gelenk, path, steps, PILE_SETTINGS)
+                s = soft["mean_us_per_step"]
+                lines.append(
+                    f"| {n} | {label} | {steps} | {mujoco_us:.0f} | {s:.0f} | {s / mujoco_us:.2f}× "
+                    f"| {soft['fallbacks']} | {'no' if unstable else 'yes'} |"
+                )
+                print(lines[-1], flush=True)
+    lines += ["", f"MuJoCo {version}; both engines on one core of the same host, back to back.", ""]
+    section = "\n".join(lines)
+    if args.no_write:
+        print(section)
+    else:
+        write_doc(section)
+        print(f"written to {os.path.relpath(DOC)}")
+
+
+if __name__ == "__main__":
+    main()
