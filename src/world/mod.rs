@@ -666,7 +666,8 @@ impl World {
     /// [`Solve::solve`]).
     fn solve_problem(&mut self) -> Result<ChainReport, StepError> {
         let generation = self.rows.kept_contact_rows().map(|(generation, _)| generation);
-        Ok(self.solve.solve(&self.contacts, generation, &self.bodies, &mut self.dofs)?)
+        let softness = self.options.softness;
+        Ok(self.solve.solve(&self.contacts, generation, softness, &self.bodies, &mut self.dofs)?)
     }
 
     /// Moves every collider to the current states (poses, Jacobians), as a step's first phase

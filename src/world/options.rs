@@ -125,12 +125,15 @@ pub struct WorldOptions {
     /// friction, motors; loop closures stay hard): each gets the regularisation
     /// `R_ii += s · A_ii` ([`crate::constraints::ConstraintProblem::soften`]), a compliance
     /// scaled to the row's effective mass, as MuJoCo's impedance and Drake SAP's near-rigid
-    /// regularisation are. 0 (the default): hard rows. The rows then keep a fraction
-    /// `s / (1 + s)` of the velocity they would otherwise cancel in one step, which moves a
-    /// resting contact by about `s g h² / erp` (1.4e-5 m at s = 0.01, h = 1/60 s): small next to
-    /// the surface layer, and what lets [`SolverKind::Newton`] converge in a few iterations on
-    /// piles of articulated bodies (the whole problem is then smooth). Every solver of the
-    /// chain solves, and is certified on, the softened problem.
+    /// regularisation are, centred on the warm start (last step's impulses,
+    /// [`crate::constraints::ConstraintProblem::center_softening`]): the compliance acts on the
+    /// change of a row's impulse from one step to the next, so a contact that carries the same
+    /// load step after step holds it as a hard one would instead of sinking under it (a ragdoll
+    /// under a heap of twenty would sink by centimetres). 0 (the default): hard rows. A row
+    /// whose impulse changes keeps a fraction `s / (1 + s)` of the velocity it would otherwise
+    /// cancel in that step. This is what lets [`SolverKind::Newton`] converge in a few
+    /// iterations on piles of articulated bodies (the whole problem is then smooth). Every
+    /// solver of the chain solves, and is certified on, the softened problem.
     pub softness: f64,
     /// Accept the last solver's answer even above the tolerance (recorded) instead of failing.
     pub accept_last: bool,

@@ -112,15 +112,21 @@ impl Solve {
 
     /// Solves the built problem island by island, warm-started from the last solve, keeps its impulses for the
     /// next, and applies them: `dofs.v_free` becomes the velocity after the impulses.
-    /// `generation`: that of the contact rows the builder starts with.
+    /// `generation`: that of the contact rows the builder starts with. `softness`: that the
+    /// problem was softened by, centred here on the warm start
+    /// ([`ConstraintProblem::center_softening`]).
     pub(crate) fn solve(
         &mut self,
         contacts: &[Contact],
         generation: Option<u64>,
+        softness: f64,
         bodies: &[Multibody],
         dofs: &mut StackedDofs,
     ) -> Result<ChainReport, SolverError> {
         self.warm.start(&self.problem, contacts, generation, &mut self.lambda);
+        if softness > 0.0 {
+            self.problem.center_softening(softness, &self.lambda);
+        }
         let report = self.islands.solve(&self.problem, &mut self.lambda, &self.chain)?;
         self.warm.remember(&self.problem, contacts, generation, &self.lambda);
         dofs.apply_impulses(&self.problem, &self.lambda, bodies);
