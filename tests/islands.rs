@@ -75,7 +75,8 @@ fn a_scene_with_zero_threads_is_an_error_naming_its_line() {
     std::fs::copy(models().join("ragdoll.urdf"), dir.join("ragdoll.urdf")).unwrap();
     let path = dir.join("zero_threads.toml");
     std::fs::write(&path, text).unwrap();
-    let message = scene::load_file(&path).err().expect("threads = 0 is refused").to_string();
+    let Err(error) = scene::load_file(&path) else { panic!("threads = 0 is refused") };
+    let message = error.to_string();
     assert!(message.contains("line 8") && message.contains("threads"), "{message}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -113,10 +113,10 @@ fn constraint_rows(
             cone_normal[c.normal] = true;
         }
     }
-    for i in 0..n {
+    for (i, &under_cone) in cone_normal.iter().enumerate() {
         match problem.laws[i] {
             RowLaw::Unilateral => {
-                if !cone_normal[i] {
+                if !under_cone {
                     nonneg.push((vec![(i, -1.0)], 0.0));
                 }
             }

@@ -112,7 +112,7 @@ pub(super) fn build(source: Source, overrides: &Overrides) -> Result<Scene, Scen
     }
     let mut world = World::new(options.clone());
     if let Some(threads) = &w.threads {
-        world.set_threads(threads.get_ref().0).map_err(|e| b.src.invalid(threads.span(), &e.to_string()))?;
+        world.set_threads(threads.get_ref().0).map_err(|e| b.src.invalid(threads.span(), e.to_string()))?;
     }
 
     // Materials and pairs.
