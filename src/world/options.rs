@@ -114,10 +114,9 @@ pub struct WorldOptions {
     /// Friction cone or pyramid.
     pub friction: FrictionModel,
     /// Solver chain, first choice first, run on each island of the step's problem
-    /// ([`super::World::set_threads`]). The default, PGS (100 sweeps) → Newton → clarabel: PGS
-    /// answers piles of free bodies in a few sweeps, Newton's method (from PGS's answer)
-    /// the islands where sweeps crawl (articulated piles, stacks, mass ratios), and clarabel
-    /// the rare island Newton's method cannot.
+    /// ([`super::World::set_threads`]). The default, PGS (100 sweeps) → clarabel; piles of
+    /// articulated bodies are answered by Newton's method on softened rows (`newton`,
+    /// `clarabel` with [`Self::softness`] 0.1: models/ragdoll_crowd.toml).
     pub solvers: Vec<SolverKind>,
     /// Residual (m/s) a solver's answer must meet before the chain accepts it.
     pub tolerance: f64,
