@@ -40,8 +40,8 @@ pub struct SolverChain {
     /// rather than failing the step.
     pub accept_last: bool,
     /// A solver after one whose answer missed the tolerance starts from that answer instead of
-    /// the warm start (PGS's sweeps leave the active set nearly right, and Newton's method then
-    /// converges in a few iterations); a solver that failed hands on nothing.
+    /// the warm start; a solver that failed hands on nothing. Off by default: on, clarabel's
+    /// answers after a PGS miss change, and with them later warm starts (docs/solvers.md).
     pub hand_on: bool,
     w: DVector<f64>,
     candidate: DVector<f64>,
@@ -54,7 +54,7 @@ impl SolverChain {
             solvers,
             tolerance,
             accept_last: false,
-            hand_on: true,
+            hand_on: false,
             w: DVector::zeros(0),
             candidate: DVector::zeros(0),
         }
