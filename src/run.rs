@@ -35,6 +35,9 @@ pub struct RunOptions {
     /// Relative softness of the rows instead of `[world] softness`
     /// ([`crate::world::WorldOptions::softness`]).
     pub softness: Option<f64>,
+    /// Threads the islands of each step are solved on instead of `[world] threads`
+    /// ([`crate::world::World::set_threads`]; ≥ 1).
+    pub threads: Option<usize>,
 }
 
 /// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
@@ -212,6 +215,13 @@ pub struct RunSummary {
     pub fallbacks: u64,
     /// Largest certifying residual of an accepted answer (m/s).
     pub max_residual: f64,
+    /// Steps whose accepted answer's certifying residual is above the chain's tolerance (the
+    /// last solver's answer accepted, [`crate::world::WorldOptions::accept_last`]).
+    pub steps_above_tolerance: u64,
+    /// Most islands of one step's problem.
+    pub max_islands: usize,
+    /// Most rows of one island.
+    pub largest_island: usize,
     /// Mean iterations (or pivots) per solved step.
     pub mean_iterations: f64,
     /// Wall-clock seconds per phase of the step, summed: kinematics, collision, free motion, rows
@@ -257,6 +267,9 @@ pub fn run(
         }
         scene.world.set_softness(softness);
     }
+    if let Some(threads) = options.threads {
+        scene.world.set_threads(threads).map_err(|e| SceneError::Options(e.to_string()))?;
+    }
     let duration = options.duration.unwrap_or(scene.duration);
     if !(duration.is_finite() && duration >= 0.0) {
         return Err(SceneError::Options(format!("duration must be non-negative, got {duration}")));
@@ -297,6 +310,7 @@ pub fn run(
     scene.world.set_phase_timing(true);
     summary.energy_start = finite("total energy", 0, scene.world.total_energy())?;
     let mut iterations = 0u64;
+    let tolerance = scene.world.options().tolerance;
     let start = Instant::now();
     if every > 0 {
         record_row(scene, 0, &mut recording, frames.as_mut())?;
@@ -319,6 +333,9 @@ pub fn run(
             summary.solved_steps += 1;
             *summary.solver_usage.entry(stats.solver.to_string()).or_default() += 1;
             summary.max_residual = summary.max_residual.max(stats.residual);
+            summary.steps_above_tolerance += u64::from(stats.residual > tolerance);
+            summary.max_islands = summary.max_islands.max(stats.islands);
+            summary.largest_island = summary.largest_island.max(stats.largest_island);
             if stats.residual.is_nan() {
                 return Err(SceneError::NonFiniteResult {
                     what: "solver residual",

@@ -1,5 +1,6 @@
 //! In steady state (the same contacts from step to step), `World::step` performs zero heap
 //! allocations (nor does collision detection): a stack of three boxes resting on the ground, solved by projected Gauss–Seidel,
+//! three stacks solved as three islands,
 //! a free pendulum without contacts (ABA path), and a resting ragdoll (joint damping: the
 //! implicit free motion, with its mass-matrix factor kept and computed again).
 
@@ -64,6 +65,42 @@ fn resting_stack_steps_without_allocating() {
     assert_eq!(failures, 0);
     assert_eq!(w.stats().contacts, contacts);
     assert_eq!(count, 0, "World::step allocated {count} times in 50 steady steps");
+}
+
+/// Three stacks of two boxes side by side: three islands, each extracted into its own problem
+/// and solved by its own chain, with every buffer kept from the last step (on this thread; the
+/// counting allocator does not see rayon's threads).
+#[test]
+fn resting_stacks_solved_as_islands_step_without_allocating() {
+    let mut options = WorldOptions {
+        solvers: vec![SolverKind::Pgs { iterations: 30, omega: 1.0 }],
+        accept_last: true,
+        ..Default::default()
+    };
+    options.sleep.enabled = false;
+    let mut w = World::new(options);
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+    for stack in 0..3 {
+        for k in 0..2 {
+            let b =
+                w.add_multibody(&format!("box{stack}_{k}"), lone_box(0.1), &MeshOptions::default()).unwrap();
+            let q = &mut w.multibody_mut(b).state.q;
+            q[0] = 0.5 * stack as f64;
+            q[2] = 0.05 + 0.1 * k as f64;
+        }
+    }
+    for _ in 0..300 {
+        w.step().unwrap();
+    }
+    assert_eq!(w.stats().islands, 3, "{:?}", w.stats());
+    assert_eq!(w.stats().contacts, 24, "{:?}", w.stats());
+    let count = allocations_during(|| {
+        for _ in 0..50 {
+            w.step().unwrap();
+        }
+    });
+    assert_eq!(w.stats().islands, 3);
+    assert_eq!(count, 0, "World::step allocated {count} times in 50 steady steps of three islands");
 }
 
 #[test]

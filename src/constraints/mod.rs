@@ -15,12 +15,14 @@
 
 mod builder;
 mod contact;
+mod islands;
 mod joints;
 mod loops;
 
 pub use builder::{assemble_single, ProblemBuilder, RowMut, TreeFactor};
 pub(crate) use builder::{BuiltRows, RowsMark};
 pub use contact::{add_contact_rows, add_contact_rows_with, ContactParameters, Speculation};
+pub use islands::IslandPartition;
 pub use joints::{
     add_joint_friction_rows, add_joint_limit_rows, add_joint_limit_rows_speculative, add_motor_row,
     DroppedLimit, JointLimitParameters, LimitVelocities,
@@ -455,14 +457,30 @@ impl ConstraintProblem {
     /// (loop closures) stay as they are. See [`crate::world::WorldOptions::softness`].
     pub fn soften(&mut self, relative: f64) {
         for i in 0..self.rows() {
-            let extra = match self.laws[i] {
-                RowLaw::Bilateral => continue,
-                RowLaw::Friction { contact } => {
-                    relative * self.diagonal_of_row(self.contacts[contact].normal)
-                }
-                RowLaw::Unilateral | RowLaw::Bounded { .. } => relative * self.diagonal_of_row(i),
-            };
-            self.regularization[i] += extra;
+            self.regularization[i] += self.softening(i, relative);
+        }
+    }
+
+    /// Centres the softening of [`Self::soften`] on the impulses `centre` (one per row, N·s):
+    /// `b_i −= s A_ii · centre_i`, so that the rows are `(A + R) λ + b − S λ̄` with `S` the
+    /// added compliance: the compliance then acts on the change of the impulse from `centre`
+    /// (the warm start, last step's impulses) and not on the impulse itself, and a row that
+    /// carries the same impulse step after step (a body resting under a heap) holds it as a
+    /// hard row would, without sinking by `S λ h / erp` (the proximal point method across
+    /// steps). Rows without a softening are unchanged.
+    pub fn center_softening(&mut self, relative: f64, centre: &DVector<f64>) {
+        for i in 0..self.rows() {
+            let s = self.softening(i, relative);
+            self.bias[i] -= s * centre[i];
+        }
+    }
+
+    /// The compliance [`Self::soften`] adds to row `i`.
+    fn softening(&self, i: usize, relative: f64) -> f64 {
+        match self.laws[i] {
+            RowLaw::Bilateral => 0.0,
+            RowLaw::Friction { contact } => relative * self.diagonal_of_row(self.contacts[contact].normal),
+            RowLaw::Unilateral | RowLaw::Bounded { .. } => relative * self.diagonal_of_row(i),
         }
     }
 

@@ -3,6 +3,7 @@
 
 use super::{residuals, ConstraintSolver, Residuals, SolverError};
 use crate::constraints::ConstraintProblem;
+use crate::math::all_finite;
 use nalgebra::DVector;
 
 /// A solver that was tried and did not deliver, and why.
@@ -38,6 +39,10 @@ pub struct SolverChain {
     /// Take the last solver's answer even above the tolerance (recorded as a fallback reason)
     /// rather than failing the step.
     pub accept_last: bool,
+    /// A solver after one whose answer missed the tolerance starts from that answer instead of
+    /// the warm start; a solver that failed hands on nothing. Off by default: on, clarabel's
+    /// answers after a PGS miss change, and with them later warm starts (docs/solvers.md).
+    pub hand_on: bool,
     w: DVector<f64>,
     candidate: DVector<f64>,
 }
@@ -45,7 +50,14 @@ pub struct SolverChain {
 impl SolverChain {
     /// A chain of `solvers` with residual tolerance `tolerance` (m/s).
     pub fn new(solvers: Vec<Box<dyn ConstraintSolver>>, tolerance: f64) -> Self {
-        Self { solvers, tolerance, accept_last: false, w: DVector::zeros(0), candidate: DVector::zeros(0) }
+        Self {
+            solvers,
+            tolerance,
+            accept_last: false,
+            hand_on: false,
+            w: DVector::zeros(0),
+            candidate: DVector::zeros(0),
+        }
     }
 
     /// The certifying residual of `residuals` for the solver named `solver` (the exact
@@ -62,8 +74,16 @@ impl SolverChain {
     ) -> Result<ChainReport, SolverError> {
         let mut fallbacks = Vec::new();
         let count = self.solvers.len();
+        if self.candidate.len() == lambda.len() {
+            self.candidate.copy_from(lambda);
+        } else {
+            self.candidate.clone_from(lambda);
+        }
+        let mut hand = false;
         for (k, solver) in self.solvers.iter_mut().enumerate() {
-            if self.candidate.len() == lambda.len() {
+            if hand && all_finite(self.candidate.as_slice()) {
+                // The last solver's answer missed the tolerance: the next starts from it.
+            } else if self.candidate.len() == lambda.len() {
                 self.candidate.copy_from(lambda);
             } else {
                 self.candidate.clone_from(lambda);
@@ -101,9 +121,11 @@ impl SolverChain {
                         solver: solver.name().to_string(),
                         reason: format!("residual {certified:.3e} above tolerance {:.1e}", self.tolerance),
                     });
+                    hand = self.hand_on;
                 }
                 Err(e) => {
-                    fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() })
+                    fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() });
+                    hand = false;
                 }
             }
         }

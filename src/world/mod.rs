@@ -99,6 +99,10 @@ pub enum StepError {
         /// The error.
         source: IntegratorError,
     },
+    /// A thread count of 0, or above 1 without the `parallel` feature
+    /// ([`World::set_threads`]).
+    #[error("threads: {0}")]
+    Threads(String),
     /// A multibody or body index out of range.
     #[error("index {index} is out of range ({count} {what})")]
     IndexOutOfRange {
@@ -156,7 +160,7 @@ impl World {
     pub fn new(options: WorldOptions) -> Self {
         Self {
             collision: CollisionWorld::new(options.collision),
-            solve: Solve::new(options.chain()),
+            solve: Solve::new(&options),
             rows: RowAssembly::new(ProblemBuilder::new(0, options.friction)),
             materials: Materials::new(options.contact),
             options,
@@ -241,7 +245,20 @@ impl World {
     /// warm-start memory is kept.
     pub fn set_solvers(&mut self, solvers: Vec<SolverKind>) {
         self.options.solvers = solvers;
-        self.solve.chain = self.options.chain();
+        self.solve.set_chain(&self.options);
+    }
+
+    /// Solves the islands of each step's constraint problem on `threads` threads (1: on the
+    /// calling thread, the default). The trajectory is the same bit for bit for any count
+    /// (island k is always solved by the same solver chain, see `stages/islands.rs`). Above 1
+    /// needs the `parallel` feature; 0 is refused.
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), StepError> {
+        self.solve.islands.set_threads(threads).map_err(StepError::Threads)
+    }
+
+    /// Threads the islands of a step are solved on ([`World::set_threads`]).
+    pub fn threads(&self) -> usize {
+        self.solve.islands.threads()
     }
 
     /// Replaces the friction model of the contact rows ([`WorldOptions::friction`]) from the next
@@ -251,7 +268,7 @@ impl World {
             .map_err(StepError::Solver)?;
         self.rows.kept.invalidate();
         self.options.friction = friction;
-        self.solve.chain = self.options.chain();
+        self.solve.set_chain(&self.options);
         Ok(())
     }
 
@@ -617,6 +634,7 @@ impl World {
             timer,
             integrator,
             (self.collision.sweep_stats(), self.collision.sweep_diagnostics()),
+            (self.solve.islands.count, self.solve.islands.largest),
         );
     }
 
@@ -648,7 +666,8 @@ impl World {
     /// [`Solve::solve`]).
     fn solve_problem(&mut self) -> Result<ChainReport, StepError> {
         let generation = self.rows.kept_contact_rows().map(|(generation, _)| generation);
-        Ok(self.solve.solve(&self.contacts, generation, &self.bodies, &mut self.dofs)?)
+        let softness = self.options.softness;
+        Ok(self.solve.solve(&self.contacts, generation, softness, &self.bodies, &mut self.dofs)?)
     }
 
     /// Moves every collider to the current states (poses, Jacobians), as a step's first phase

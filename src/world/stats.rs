@@ -27,6 +27,11 @@ pub struct StepStats {
     pub residual: f64,
     /// Solvers that failed before it, and why.
     pub fallbacks: Vec<Fallback>,
+    /// Islands the step's constraint problem was solved as (independent groups of rows joined
+    /// through the multibodies they touch; 0 without rows).
+    pub islands: usize,
+    /// Rows of the largest island.
+    pub largest_island: usize,
     /// Deepest penetration among the contacts (m, ≥ 0).
     pub max_penetration: f64,
     /// Multibodies asleep after the step.
@@ -102,7 +107,8 @@ pub(crate) struct Diagnostics {
 
 impl StepStats {
     /// The statistics of step `step` ending at `time` (s): `report` of the solves (none without
-    /// rows) certified by `chain`, `rows` rows, the step's contacts and the multibodies after it.
+    /// rows) certified by `chain`, `rows` rows, the step's contacts and the multibodies after it,
+    /// the islands of the last solve and the rows of the largest.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn gather(
         (step, time): (u64, f64),
@@ -115,7 +121,9 @@ impl StepStats {
         timer: PhaseTimer,
         integrator: &'static str,
         (sweeps, sweep_diagnostics): (SweepStats, &[SweepDiagnostic]),
+        (islands, largest_island): (usize, usize),
     ) -> Self {
+        let (islands, largest_island) = if report.is_some() { (islands, largest_island) } else { (0, 0) };
         let report = report.unwrap_or_else(|| ChainReport {
             solver: "",
             iterations: 0,
@@ -133,6 +141,8 @@ impl StepStats {
             iterations: report.iterations,
             residual: certify,
             fallbacks: report.fallbacks,
+            islands,
+            largest_island,
             max_penetration: contacts.iter().map(|c| -c.distance).fold(0.0, f64::max),
             asleep: bodies.iter().filter(|b| b.asleep).count(),
             energy: diagnostics.energy,

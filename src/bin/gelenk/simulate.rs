@@ -22,6 +22,10 @@ pub struct SimulateArgs {
     /// scene's (R_ii = s A_ii; 0: hard).
     #[arg(long)]
     softness: Option<f64>,
+    /// Threads the islands of each step are solved on instead of the scene's (≥ 1; the
+    /// trajectory is the same on any count).
+    #[arg(long)]
+    threads: Option<usize>,
     /// Write the recorded states to FILE.csv or FILE.json.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -70,6 +74,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         record_every,
         record_frames: glb.is_some(),
         softness: args.softness,
+        threads: args.threads,
     };
     let summary = scene::run(&mut loaded, &options, crate::progress::run_bar()).map_err(|e| e.to_string())?;
     for warning in &loaded.warnings {
@@ -107,13 +112,15 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         );
         let usage: Vec<String> = summary.solver_usage.iter().map(|(k, v)| format!("{k} {v}")).collect();
         println!(
-            "solver: {} steps with rows ({}); {} fallbacks; max residual {:.2e} m/s; mean iterations {:.1}",
+            "solver: {} steps with rows ({}); {} fallbacks; {} steps above tolerance; max residual {:.2e} m/s; mean iterations {:.1}",
             summary.solved_steps,
             usage.join(", "),
             summary.fallbacks,
+            summary.steps_above_tolerance,
             summary.max_residual,
             summary.mean_iterations
         );
+        println!("islands: up to {} in a step, largest {} rows", summary.max_islands, summary.largest_island);
     }
     Ok(())
 }

@@ -126,6 +126,9 @@ pub(super) fn build(
         )));
     }
     let mut world = World::new(options.clone());
+    if let Some(threads) = &w.threads {
+        world.set_threads(threads.get_ref().0).map_err(|e| b.src.invalid(threads.span(), e.to_string()))?;
+    }
 
     // Materials and pairs.
     for m in &doc.material {

@@ -79,6 +79,7 @@
 //! | | `duration` | simulated time of [`run`], s (1) |
 //! | | `gravity` | `[x, y, z]`, m/s² (`[0, 0, -9.81]`) |
 //! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"newton"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
+//! | | `threads` | threads the islands of each step's problem are solved on, ≥ 1; above 1 needs the `parallel` feature ([`World::set_threads`](crate::world::World::set_threads); 1) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
 //! | | `softness` | relative compliance of contacts, limits, joint friction and motors, `R_ii = s A_ii` ([`WorldOptions::softness`](crate::world::WorldOptions::softness); 0: hard) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |

@@ -94,6 +94,7 @@ pub(super) struct WorldSection {
     pub(super) mass_matrix_reuse: Option<MassReuseSetting>,
     pub(super) sleep: Option<bool>,
     pub(super) integrator: Option<IntegratorName>,
+    pub(super) threads: Option<Spanned<Count1>>,
 }
 
 /// Tables holding contact parameters: `[contact]`, `[[material]]`, `[[pair]]`.

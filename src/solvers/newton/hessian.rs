@@ -7,13 +7,18 @@
 //! coupled where some group of rows touches both (a contact between two multibodies). The
 //! pattern, and with it the symbolic factorization, is kept while the set of coupled block
 //! pairs stays the same: a resting pile factors with the symbolic analysis of an earlier step.
+//!
+//! H is assembled in its block order and copied into the fill-reducing (AMD) order once per
+//! factorization through a map made with the pattern (one pass over the entries), and factored
+//! there without a permutation of faer's own: its general permutation of a symmetric matrix,
+//! done at every numeric factorization, cost more than the copy.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
 };
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 /// The lower triangle of H in compressed columns, and its factor.
@@ -32,6 +37,16 @@ pub(super) struct Hessian {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     values: Vec<f64>,
+    /// Per column, its index in the AMD order; the lower triangle of H in that order (pattern
+    /// and values), and where each entry of `values` goes in it.
+    order: Vec<usize>,
+    ordered: Option<SymbolicSparseColMat<usize>>,
+    ordered_values: Vec<f64>,
+    ordered_position: Vec<usize>,
+    /// A right-hand side in the AMD order.
+    ordered_rhs: Vec<f64>,
+    /// Whether `ordered` holds the lower triangle (else the upper).
+    lower: bool,
     symbolic: Option<SymbolicCholesky<usize>>,
     factor: Vec<f64>,
     memory: Option<MemBuffer>,
@@ -92,9 +107,66 @@ impl Hessian {
         self.values.clear();
         self.values.resize(self.row_idx.len(), 0.0);
         let pattern = SymbolicSparseColMatRef::new_checked(nv, nv, &self.col_ptr, None, &self.row_idx);
-        let symbolic =
+        let amd =
             factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
                 .expect("symbolic Cholesky of a valid pattern");
+        self.order.clear();
+        match amd.perm() {
+            Some(perm) => self.order.extend_from_slice(perm.arrays().1),
+            None => self.order.extend(0..nv),
+        }
+        // One triangle of H in the new order, columns sorted, rows increasing in each: the
+        // upper for the symbolic analysis (which, without an ordering of its own, reads the
+        // upper triangle) and the simplicial factorization, the lower for the supernodal one
+        // (the triangle each reads without a transposed copy).
+        let mut entries: Vec<(usize, usize, usize)> = Vec::with_capacity(self.row_idx.len());
+        let triangle = |entries: &mut Vec<(usize, usize, usize)>, upper: bool| {
+            entries.clear();
+            for j in 0..nv {
+                for p in self.col_ptr[j]..self.col_ptr[j + 1] {
+                    let (a, b) = (self.order[self.row_idx[p]], self.order[j]);
+                    let (row, col) = if upper { (a.min(b), a.max(b)) } else { (a.max(b), a.min(b)) };
+                    entries.push((col, row, p));
+                }
+            }
+            // By row, then stably by column: two counting sorts, O(entries + nv).
+            let mut sorted = vec![(0, 0, 0); entries.len()];
+            counting_sort_by(entries, &mut sorted, nv, |e| e.1);
+            counting_sort_by(&sorted, entries, nv, |e| e.0);
+            let mut col_ptr = vec![0usize; nv + 1];
+            let mut row_idx = Vec::with_capacity(entries.len());
+            for &(col, row, _) in entries.iter() {
+                col_ptr[col + 1] += 1;
+                row_idx.push(row);
+            }
+            for j in 0..nv {
+                col_ptr[j + 1] += col_ptr[j];
+            }
+            SymbolicSparseColMat::new_checked(nv, nv, col_ptr, None, row_idx)
+        };
+        let mut ordered = triangle(&mut entries, true);
+        let symbolic = factorize_symbolic_cholesky(
+            ordered.as_ref(),
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            Default::default(),
+        )
+        .expect("symbolic Cholesky of a valid pattern");
+        self.lower = false;
+        if matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
+            ordered = triangle(&mut entries, false);
+            self.lower = true;
+        }
+        self.ordered_position.clear();
+        self.ordered_position.resize(entries.len(), 0);
+        for (k, &(_, _, p)) in entries.iter().enumerate() {
+            self.ordered_position[p] = k;
+        }
+        self.ordered = Some(ordered);
+        self.ordered_values.clear();
+        self.ordered_values.resize(entries.len(), 0.0);
+        self.ordered_rhs.clear();
+        self.ordered_rhs.resize(nv, 0.0);
         self.factor.clear();
         self.factor.resize(symbolic.len_val(), 0.0);
         let need = StackReq::any_of(&[
@@ -169,16 +241,18 @@ impl Hessian {
     /// Factors H (its values as added since [`Self::reset`]).
     pub(super) fn factor(&mut self) -> Result<(), NotPositiveDefinite> {
         let symbolic = self.symbolic.as_ref().expect("a prepared pattern");
-        let nv = self.block_of_col.len();
-        let pattern = SymbolicSparseColMatRef::new_checked(nv, nv, &self.col_ptr, None, &self.row_idx);
-        let matrix = SparseColMatRef::new(pattern, &self.values);
+        let ordered = self.ordered.as_ref().expect("a prepared pattern");
+        for (&k, &x) in self.ordered_position.iter().zip(&self.values) {
+            self.ordered_values[k] = x;
+        }
+        let matrix = SparseColMatRef::new(ordered.as_ref(), &self.ordered_values);
         let memory = self.memory.as_mut().expect("a prepared pattern");
         let stack = MemStack::new(memory);
         symbolic
             .factorize_numeric_llt(
                 &mut self.factor,
                 matrix,
-                Side::Lower,
+                if self.lower { Side::Lower } else { Side::Upper },
                 LltRegularization::default(),
                 Par::Seq,
                 stack,
@@ -193,14 +267,36 @@ impl Hessian {
         let symbolic = self.symbolic.as_ref().expect("a prepared pattern");
         let memory = self.memory.as_mut().expect("a prepared pattern");
         let stack = MemStack::new(memory);
+        for (&new, &x) in self.order.iter().zip(rhs.iter()) {
+            self.ordered_rhs[new] = x;
+        }
         let n = rhs.len();
-        let rhs = MatMut::from_column_major_slice_mut(rhs, n, 1);
+        let ordered = MatMut::from_column_major_slice_mut(&mut self.ordered_rhs, n, 1);
         LltRef::<'_, usize, f64>::new(symbolic, &self.factor).solve_in_place_with_conj(
             Conj::No,
-            rhs,
+            ordered,
             Par::Seq,
             stack,
         );
+        for (&new, x) in self.order.iter().zip(rhs.iter_mut()) {
+            *x = self.ordered_rhs[new];
+        }
+    }
+}
+
+/// `from` into `to` (same length) sorted stably by `key` (< `keys`).
+fn counting_sort_by<T: Copy>(from: &[T], to: &mut [T], keys: usize, key: impl Fn(&T) -> usize) {
+    let mut start = vec![0usize; keys + 1];
+    for x in from {
+        start[key(x) + 1] += 1;
+    }
+    for k in 0..keys {
+        start[k + 1] += start[k];
+    }
+    for x in from {
+        let k = key(x);
+        to[start[k]] = *x;
+        start[k] += 1;
     }
 }
 

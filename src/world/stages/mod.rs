@@ -8,7 +8,8 @@
 //! 4. [`free_motion`]: the velocity without constraint impulses, stacked over the world.
 //! 5. [`rows`]: the constraint rows (contacts the speculation keeps, limits, motors, servos,
 //!    joint friction, loop closures); [`solve`] poses their problem.
-//! 6. [`solve`]: warm start, the solver chain, the velocity after the impulses.
+//! 6. [`solve`]: warm start, the solver chain on each island ([`islands`]), the velocity after
+//!    the impulses.
 //! 7. [`speculation`]: rows for the contacts and limit stops the solved velocity closes, and
 //!    the problem solved again.
 //! 8. [`integrate`]: q on the manifold, loop closures projected, the new state committed.
@@ -19,6 +20,7 @@ pub(super) mod check;
 pub(super) mod collision;
 pub(super) mod free_motion;
 pub(super) mod integrate;
+pub(super) mod islands;
 pub(super) mod kinematics;
 pub(super) mod rows;
 pub(super) mod solve;

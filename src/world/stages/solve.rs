@@ -2,20 +2,30 @@
 //! (W = J L⁻¹ D^{-1/2} over each multibody's mass-matrix factor, kept while the rows and
 //! factors are those it was built from), its impulses by the solver chain warm-started from the
 //! last step ([`WarmStart`]), and the velocity after them, `v⁺ = v_free + M⁻¹ Jᵀ λ`.
+//!
+//! The problem is solved island by island ([`IslandPartition`]): rows joined through the
+//! multibodies they touch form an island, islands share no velocity, and each is solved by a
+//! chain of its own (island k by chain k, whatever thread runs it, so that the answer does not
+//! depend on the thread count; see `islands.rs`). Sleeping multibodies have no rows: their
+//! islands cost nothing.
 
 use crate::collision::Contact;
 use crate::constraints::{BuiltRows, ConstraintProblem, FrictionModel, ProblemBuilder, RowsMark};
 use crate::error::SolverError;
 use crate::solvers::{ChainReport, SolverChain};
 use crate::world::dofs::{block_factors, StackedDofs};
+use crate::world::stages::islands::IslandSolves;
 use crate::world::warm_start::WarmStart;
-use crate::world::Multibody;
+use crate::world::{Multibody, WorldOptions};
 use nalgebra::DVector;
 
 /// The solver chain, the step's problem and impulses, and what lets W be kept between steps.
 pub(crate) struct Solve {
-    /// The solvers, tried in order.
+    /// The solvers, tried in order (the chain whose settings every island's chain copies, and
+    /// that certifies the step's report).
     pub(crate) chain: SolverChain,
+    /// The islands of the problem, each with its chain, sub-problem and impulses.
+    pub(crate) islands: IslandSolves,
     /// The constraint problem of the last step.
     pub(crate) problem: ConstraintProblem,
     /// Its impulses (N·s), one per row.
@@ -33,10 +43,11 @@ pub(crate) struct Solve {
 }
 
 impl Solve {
-    /// No problem yet; `chain` solves the problems to come.
-    pub(crate) fn new(chain: SolverChain) -> Self {
+    /// No problem yet; the chain of `options` solves the problems to come.
+    pub(crate) fn new(options: &WorldOptions) -> Self {
         Self {
-            chain,
+            chain: options.chain(),
+            islands: IslandSolves::new(options),
             problem: ConstraintProblem::default(),
             built_rows: BuiltRows::default(),
             built_factors: Vec::new(),
@@ -45,6 +56,12 @@ impl Solve {
             lambda: DVector::zeros(0),
             warm: WarmStart::default(),
         }
+    }
+
+    /// Replaces the solver chain by that of `options` (every island's too).
+    pub(crate) fn set_chain(&mut self, options: &WorldOptions) {
+        self.chain = options.chain();
+        self.islands.set_chain(options);
     }
 
     /// The empty problem of a step without rows.
@@ -93,18 +110,24 @@ impl Solve {
         }
     }
 
-    /// Solves the built problem warm-started from the last solve, keeps its impulses for the
+    /// Solves the built problem island by island, warm-started from the last solve, keeps its impulses for the
     /// next, and applies them: `dofs.v_free` becomes the velocity after the impulses.
-    /// `generation`: that of the contact rows the builder starts with.
+    /// `generation`: that of the contact rows the builder starts with. `softness`: that the
+    /// problem was softened by, centred here on the warm start
+    /// ([`ConstraintProblem::center_softening`]).
     pub(crate) fn solve(
         &mut self,
         contacts: &[Contact],
         generation: Option<u64>,
+        softness: f64,
         bodies: &[Multibody],
         dofs: &mut StackedDofs,
     ) -> Result<ChainReport, SolverError> {
         self.warm.start(&self.problem, contacts, generation, &mut self.lambda);
-        let report = self.chain.solve(&self.problem, &mut self.lambda)?;
+        if softness > 0.0 {
+            self.problem.center_softening(softness, &self.lambda);
+        }
+        let report = self.islands.solve(&self.problem, &mut self.lambda, &self.chain)?;
         self.warm.remember(&self.problem, contacts, generation, &self.lambda);
         dofs.apply_impulses(&self.problem, &self.lambda, bodies);
         Ok(report)
