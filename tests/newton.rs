@@ -208,25 +208,33 @@ fn a_soft_ragdoll_pile_is_certified_every_step() {
     assert!(most_rows >= 100, "the ragdolls land on each other ({most_rows} rows at most)");
 }
 
-/// The softness is centred on last step's impulses: a stack of ten 0.5 kg boxes at 1/60 s with
-/// softness 0.5 carries its weight as a hard stack does. Uncentred, a bottom contact point
-/// (A_nn ≈ 6 /kg, a quarter of the stack's weight) would sink beyond the 1 mm surface layer by
-/// `0.5 A_nn λ h / erp`, several millimetres; centred it settles within the layer.
+/// The softness is centred on last step's impulses: a stack of ten 0.5 kg boxes at 2 ms with
+/// softness 0.5 stands and carries its weight as a hard stack does. Uncentred, a bottom contact
+/// point (A_nn ≈ 6 /kg, a quarter of the stack's weight) would sink beyond the 1 mm surface
+/// layer by `0.5 A_nn λ h / erp` ≈ 0.7 mm; centred it settles within the layer. (At 1/60 s the
+/// position correction, ERP 0.2, makes so soft a stack bob by centimetres: not asserted.)
 #[test]
 fn a_soft_stack_carries_its_load_without_sinking() {
     let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
     let text = std::fs::read_to_string(format!("{models}/box_stack10.toml")).unwrap();
     let text = text
-        .replace("\ndt = 0.002\n", "\ndt = 0.016666666666666666\nsoftness = 0.5\n")
+        .replace("\ndt = 0.002\n", "\ndt = 0.002\nsoftness = 0.5\n")
         .replace("solver = [\"pgs100\", \"clarabel\"]", "solver = [\"newton\", \"clarabel\"]");
     assert!(text.contains("softness = 0.5") && text.contains("[\"newton\", \"clarabel\"]"));
     let mut scene = gelenk::io::scene::load_str(&text, models).unwrap();
-    let mut deepest_late = 0.0f64;
-    for step in 0..300 {
+    let top = scene.world.multibody_count() - 1;
+    let top_start = scene.world.multibody(top).state.q[2];
+    let (mut deepest_late, mut top_lowest, mut top_highest) = (0.0f64, top_start, top_start);
+    for step in 0..1000 {
         let stats = scene.world.step().unwrap_or_else(|e| panic!("step {step}: {e}"));
-        if step >= 200 {
+        if step >= 750 {
             deepest_late = deepest_late.max(stats.max_penetration);
         }
+        let z = scene.world.multibody(top).state.q[2];
+        (top_lowest, top_highest) = (top_lowest.min(z), top_highest.max(z));
     }
-    assert!(deepest_late < 1.5e-3, "the stack sinks under its load: {deepest_late:.2e} m deep");
+    println!("top box from {top_start:.4} m within [{top_lowest:.4}, {top_highest:.4}] m; late depth {deepest_late:.2e} m");
+    // The stack stands: its top box neither falls nor is thrown up.
+    assert!(top_start - top_lowest < 0.02 && top_highest - top_start < 0.02, "the stack does not stand");
+    assert!(deepest_late < 1e-3, "the stack sinks under its load: {deepest_late:.2e} m deep");
 }

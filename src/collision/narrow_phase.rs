@@ -33,6 +33,9 @@ pub(crate) struct PairState {
     /// Pose of B in A's frame when the manifolds were last computed (None: never, or the last
     /// call failed), for [`refresh_distances`].
     pub computed_at: Option<Pose>,
+    /// The pair's margin (m) when the manifolds were last computed: they hold every point
+    /// within it.
+    pub computed_margin: f64,
     /// Per manifold, whether this call's height-field loop reached its triangle
     /// ([`convex_against_height_field`]).
     visited: Vec<bool>,

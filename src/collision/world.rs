@@ -239,6 +239,9 @@ pub struct CollisionWorld {
     stats: CollisionStats,
     /// Per collider, its motion over the next step if it is swept ([`CollisionWorld::set_motion`]).
     motions: Vec<Option<SweptMotion>>,
+    /// Per collider, how far (m) its points may travel in the next step, up to its radius: its
+    /// pairs' margin grows by it ([`CollisionWorld::set_multibody_motions`]).
+    reach: Vec<f64>,
     sweep_diagnostics: Vec<SweepDiagnostic>,
     sweep_stats: SweepStats,
 }
@@ -468,7 +471,7 @@ impl CollisionWorld {
         let margin = self.options.margin;
         self.aabbs.clear();
         for c in 0..self.colliders.len() {
-            let aabb = self.swept_aabb(c, self.colliders[c].aabb.loosened(margin));
+            let aabb = self.swept_aabb(c, self.colliders[c].aabb.loosened(margin + self.reach_of(c)));
             self.sweep_stats.swept_colliders += usize::from(self.is_swept(c));
             self.aabbs.push(aabb);
         }
@@ -496,28 +499,33 @@ impl CollisionWorld {
     }
 
     fn narrow(&mut self, a: usize, b: usize) {
+        // The margin of this pair: the contact margin grown by how far the two may travel
+        // towards each other in the step, so that a fast pair gets its whole manifold as
+        // speculative points before it meets.
+        let margin = self.options.margin + self.reach_of(a) + self.reach_of(b);
         let (ca, cb) = (&self.colliders[a], &self.colliders[b]);
         let state = self.cache.pairs.entry((a as u32, b as u32)).or_default();
         state.last_step = self.step;
         let pos_ab = ca.world_pose.inv_mul(&cb.world_pose);
-        let reuse = self
-            .options
-            .reuse
-            .as_ref()
-            .zip(state.computed_at.as_ref())
-            .is_some_and(|(r, at)| pose_within(at, &pos_ab, r.translation, r.rotation));
+        let reuse = margin <= state.computed_margin
+            && self
+                .options
+                .reuse
+                .as_ref()
+                .zip(state.computed_at.as_ref())
+                .is_some_and(|(r, at)| pose_within(at, &pos_ab, r.translation, r.rotation));
         if reuse {
             refresh_distances(&mut state.manifolds, &pos_ab);
             self.stats.refreshed_pairs += 1;
         } else {
-            let result =
-                dispatch(ca.kind, &*ca.shape.0, cb.kind, &*cb.shape.0, &pos_ab, self.options.margin, state);
+            let result = dispatch(ca.kind, &*ca.shape.0, cb.kind, &*cb.shape.0, &pos_ab, margin, state);
             if result.is_err() {
                 // Unsupported pairs are excluded when colliders are created; nothing to report.
                 state.computed_at = None;
                 return;
             }
             state.computed_at = Some(pos_ab);
+            state.computed_margin = margin;
         }
         self.candidates.clear();
         for m in &state.manifolds {
@@ -528,7 +536,7 @@ impl CollisionWorld {
             let normal = -from_vector(pose_a.rotation * m.local_n1);
             // Parry's polygon clipping keeps every clipped point of the incident face, however far;
             // only points within the margin are contacts.
-            for p in m.points.iter().filter(|p| p.dist <= self.options.margin) {
+            for p in m.points.iter().filter(|p| p.dist <= margin) {
                 let sub = (u64::from(m.subshape1) << 20) ^ u64::from(m.subshape2);
                 self.candidates.push(Candidate {
                     point_a: from_vector(pose_a * p.local_p1),

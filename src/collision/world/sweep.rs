@@ -101,8 +101,10 @@ impl CollisionWorld {
     /// Sets the motion of every collider of multibody `multibody` over a step of `h` (s) from
     /// its bodies' spatial velocities `velocities` (one per body, world axes, about the world
     /// origin; bodies beyond the slice do not move): with `automatic`, a collider is swept
-    /// when one of its points travels further than the contact margin in the step; whatever
-    /// its speed when `always(body)`. Returns false if the index is out of range.
+    /// when one of its points travels further than the contact margin in the step, and then
+    /// its pairs' margin grows by how far its points travel (up to its radius: beyond, the
+    /// sweep finds the impact); whatever its speed it is swept when `always(body)`. Returns false
+    /// if the index is out of range.
     pub fn set_multibody_motions(
         &mut self,
         multibody: usize,
@@ -117,6 +119,9 @@ impl CollisionWorld {
         if self.motions.len() < self.colliders.len() {
             self.motions.resize(self.colliders.len(), None);
         }
+        if self.reach.len() < self.colliders.len() {
+            self.reach.resize(self.colliders.len(), 0.0);
+        }
         let margin = self.options.margin;
         for &c in &self.multibodies[multibody].colliders {
             let collider = &self.colliders[c];
@@ -126,12 +131,18 @@ impl CollisionWorld {
             };
             let Some(v) = velocities.get(body) else {
                 self.motions[c] = None;
+                self.reach[c] = 0.0;
                 continue;
             };
             let origin = from_vector(collider.world_pose.translation);
             let motion = SweptMotion { linear: v.linear + v.angular.cross(&origin), angular: v.angular, h };
-            let swept = always(body) || (automatic && travel(&motion, collider.radius) > margin);
+            let distance = travel(&motion, collider.radius);
+            let swept = always(body) || (automatic && distance > margin);
             self.motions[c] = swept.then_some(motion);
+            // A collider that stays within the margin keeps the margin (and its pairs their
+            // reused manifolds): resting bodies are not touched.
+            let fast = automatic && distance > margin && distance.is_finite();
+            self.reach[c] = if fast { distance.min(collider.radius) } else { 0.0 };
         }
         true
     }
@@ -146,6 +157,13 @@ impl CollisionWorld {
     /// Clears every collider's motion (nothing is swept until set again).
     pub fn clear_motions(&mut self) {
         self.motions.iter_mut().for_each(|m| *m = None);
+        self.reach.iter_mut().for_each(|r| *r = 0.0);
+    }
+
+    /// How far (m) collider `c`'s points may travel in the next step, as far as its pairs'
+    /// margin is concerned (0 unless set by [`CollisionWorld::set_multibody_motions`]).
+    pub(super) fn reach_of(&self, c: usize) -> f64 {
+        self.reach.get(c).copied().unwrap_or(0.0)
     }
 
     /// The diagnostics of the last detection's sweeps.
