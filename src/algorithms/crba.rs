@@ -11,7 +11,7 @@
 use super::jacobian::compute_joint_jacobians;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::math::Transform;
+use crate::math::{Mat3, Motion, SpatialInertia, Vec3};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -24,7 +24,8 @@ pub fn crba<'d>(
 ) -> Result<&'d DMatrix<f64>, DynamicsError> {
     compute_joint_jacobians(model, data, q)?;
     let m = crba_at_kinematics(model, data);
-    if let Some(k) = m.iter().position(|e| !e.is_finite()) {
+    if !all_finite(m.as_slice()) {
+        let k = m.iter().position(|e| !e.is_finite()).unwrap_or(0);
         let column = k / m.nrows().max(1);
         return Err(DynamicsError::NonFiniteResult {
             what: "mass matrix",
@@ -34,13 +35,30 @@ pub fn crba<'d>(
     Ok(m)
 }
 
+/// True when every entry is finite: `x · 0` is 0 for a finite x and NaN otherwise, summed in
+/// four independent lanes (a vectorized pass; the element-wise test with early exit is not).
+fn all_finite(values: &[f64]) -> bool {
+    let mut lanes = [0.0f64; 4];
+    let mut chunks = values.chunks_exact(4);
+    for chunk in &mut chunks {
+        for (lane, x) in lanes.iter_mut().zip(chunk) {
+            *lane += x * 0.0;
+        }
+    }
+    let tail: f64 = chunks.remainder().iter().map(|x| x * 0.0).sum();
+    (lanes.iter().sum::<f64>() + tail) == 0.0
+}
+
 /// CRBA's passes after [`compute_joint_jacobians`] at the same q (the joint transforms, body
 /// poses and world Jacobian columns in `data` are current; the world's step computes them in its
 /// kinematics phase): M into `data.mass_matrix`.
 fn crba_at_kinematics<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
+    let nv = model.nv();
     composite_rigid_body_entries(model, data, |data, k, _, m, value| {
-        data.mass_matrix[(m, k)] = value;
-        data.mass_matrix[(k, m)] = value;
+        // Column-major: (m, k) then (k, m).
+        let entries = data.mass_matrix.as_mut_slice();
+        entries[k * nv + m] = value;
+        entries[m * nv + k] = value;
     });
     &data.mass_matrix
 }
@@ -68,17 +86,18 @@ fn composite_rigid_body_entries(
     data: &mut Data,
     mut store: impl FnMut(&mut Data, usize, usize, usize, f64),
 ) {
-    let mut to_reference = Transform::identity();
-    for i in 1..model.nbodies() {
-        let (iv, nv) = (model.idx_v[i], model.joints[i].nv());
-        if i == 1 {
-            to_reference = Transform::from_translation(-data.x_wb[1].translation);
-        }
-        let x_rb = to_reference * data.x_wb[i];
-        for k in iv..iv + nv {
-            data.j_crba[k] = x_rb.act_motion(&data.s[k]);
-        }
-        data.ycrb[i] = model.inertias[i].transformed(&x_rb);
+    if model.nbodies() < 2 {
+        return;
+    }
+    // The reference point: the first body's origin. A world column about it is the column about
+    // the world origin plus one cross product (the axes are the world's already), and a body's
+    // pose about it is its world pose translated.
+    let reference = data.x_wb[1].translation;
+    for (column, world) in data.j_crba.iter_mut().zip(&data.j_world) {
+        *column = Motion { linear: world.linear + world.angular.cross(&reference), angular: world.angular };
+    }
+    for ((composite, inertia), x_wb) in data.ycrb.iter_mut().zip(&model.inertias).zip(&data.x_wb).skip(1) {
+        *composite = rotated_shifted(inertia, &x_wb.rotation, &(x_wb.translation - reference));
     }
     for i in (1..model.nbodies()).rev() {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
@@ -99,4 +118,28 @@ fn composite_rigid_body_entries(
             data.ycrb[p] += composite;
         }
     }
+}
+
+/// `inertia` (about its body's origin, in its axes) about the point `t` in axes rotated by `r`:
+/// [`SpatialInertia::transformed`] by the pose `(r, t)`, forming each of the symmetric
+/// rotational inertia's six distinct entries once. With `h = r h_b` and `g = h + m t / 2`:
+/// `I_o' = r I_o rᵀ − (t gᵀ + g tᵀ) + 2 (g·t) 1`, `h' = h + m t`.
+#[inline(always)]
+fn rotated_shifted(inertia: &SpatialInertia, r: &Mat3, t: &Vec3) -> SpatialInertia {
+    let m = inertia.mass;
+    let h = r * inertia.first_moment;
+    let ri = r * inertia.inertia_origin;
+    let g = h + t * (0.5 * m);
+    let diagonal = 2.0 * g.dot(t);
+    let mut out = Mat3::zeros();
+    for c in 0..3 {
+        for k in c..3 {
+            let rotated = ri[(k, 0)] * r[(c, 0)] + ri[(k, 1)] * r[(c, 1)] + ri[(k, 2)] * r[(c, 2)];
+            let value = rotated - (t[k] * g[c] + g[k] * t[c]);
+            out[(k, c)] = value;
+            out[(c, k)] = value;
+        }
+        out[(c, c)] += diagonal;
+    }
+    SpatialInertia { mass: m, first_moment: h + t * m, inertia_origin: out }
 }
