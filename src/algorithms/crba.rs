@@ -8,7 +8,11 @@
 //! of size m·|p|² and loses every digit of M (the 6 % Delassus error found by the far-origin
 //! hard case).
 
+use super::check::check_q;
+#[cfg(doc)]
 use super::jacobian::compute_joint_jacobians;
+use super::jacobian::parent_pose;
+use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::math::{Mat3, Motion, SpatialInertia, Vec3};
@@ -16,14 +20,23 @@ use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
 /// Computes the full symmetric mass matrix `M(q)` (kg, kg·m, kg·m²) into `data.mass_matrix` and
-/// returns it. Also leaves body poses in `data.x_wb` and joint Jacobian columns in `data.j_world`.
+/// returns it. Also leaves body poses in `data.x_wb` and joint Jacobian columns in `data.j_world`
+/// (as [`compute_joint_jacobians`] does).
 pub fn crba<'d>(
     model: &Model,
     data: &'d mut Data,
     q: &DVector<f64>,
 ) -> Result<&'d DMatrix<f64>, DynamicsError> {
-    compute_joint_jacobians(model, data, q)?;
-    let m = crba_at_kinematics(model, data);
+    check_q(model, q)?;
+    kinematics_and_world_terms(model, data, q);
+    let nv = model.nv();
+    composite_rigid_body_entries(model, data, |data, k, _, m, value| {
+        // Column-major: (m, k) then (k, m).
+        let entries = data.mass_matrix.as_mut_slice();
+        entries[k * nv + m] = value;
+        entries[m * nv + k] = value;
+    });
+    let m = &data.mass_matrix;
     if !all_finite(m.as_slice()) {
         let k = m.iter().position(|e| !e.is_finite()).unwrap_or(0);
         let column = k / m.nrows().max(1);
@@ -49,27 +62,16 @@ fn all_finite(values: &[f64]) -> bool {
     (lanes.iter().sum::<f64>() + tail) == 0.0
 }
 
-/// CRBA's passes after [`compute_joint_jacobians`] at the same q (the joint transforms, body
-/// poses and world Jacobian columns in `data` are current; the world's step computes them in its
-/// kinematics phase): M into `data.mass_matrix`.
-fn crba_at_kinematics<'d>(model: &Model, data: &'d mut Data) -> &'d DMatrix<f64> {
-    let nv = model.nv();
-    composite_rigid_body_entries(model, data, |data, k, _, m, value| {
-        // Column-major: (m, k) then (k, m).
-        let entries = data.mass_matrix.as_mut_slice();
-        entries[k * nv + m] = value;
-        entries[m * nv + k] = value;
-    });
-    &data.mass_matrix
-}
-
-/// [`crba_at_kinematics`] straight into the factorization's packed rows (`data.factor_packed`,
-/// see [`super::factor_mass_matrix`]): per dof k, M's entries on k's ancestors root first, then
+/// CRBA after [`compute_joint_jacobians`] at the same q (the joint transforms, body poses and
+/// world Jacobian columns in `data` are current; the world's step computes them in its
+/// kinematics phase), straight into the factorization's packed rows (`data.factor_packed`, see
+/// [`super::factor_mass_matrix`]): per dof k, M's entries on k's ancestors root first, then
 /// M_kk; the entries off the tree (zero) are not written, and `data.mass_matrix` is left as it
 /// is. The world's step factors these rows in place
 /// ([`super::factor_packed_mass_matrix`]): neither the dense matrix's two triangles
 /// nor the factorization's gather of them are needed.
 pub(crate) fn crba_packed_at_kinematics(model: &Model, data: &mut Data) {
+    world_terms_at_kinematics(model, data);
     let path_start = &model.dof_path_start;
     composite_rigid_body_entries(model, data, |data, k, up, _, value| {
         // The walk from k to the root visits k's packed row from its diagonal backwards.
@@ -77,21 +79,14 @@ pub(crate) fn crba_packed_at_kinematics(model: &Model, data: &mut Data) {
     });
 }
 
-/// RBDA §6.2's two passes: world-axes inertias and joint columns (about the first body's
-/// origin, into `data.j_crba` and `data.ycrb`), then composites from the leaves in, with
-/// `store(data, k, up, m, M_mk)` called for each dof k and each of k's ancestors-or-self m, `up`
-/// steps up the path from k (0 for m = k).
-fn composite_rigid_body_entries(
-    model: &Model,
-    data: &mut Data,
-    mut store: impl FnMut(&mut Data, usize, usize, usize, f64),
-) {
+/// The world terms from the kinematics in `data` (poses `x_wb`, columns `j_world`): columns
+/// about the reference point (the first body's origin) into `data.j_crba`, each body's inertia
+/// in world axes about that point into `data.ycrb`. A world column about the reference point is
+/// the column about the world origin plus one cross product (the axes are the world's already).
+fn world_terms_at_kinematics(model: &Model, data: &mut Data) {
     if model.nbodies() < 2 {
         return;
     }
-    // The reference point: the first body's origin. A world column about it is the column about
-    // the world origin plus one cross product (the axes are the world's already), and a body's
-    // pose about it is its world pose translated.
     let reference = data.x_wb[1].translation;
     for (column, world) in data.j_crba.iter_mut().zip(&data.j_world) {
         *column = Motion { linear: world.linear + world.angular.cross(&reference), angular: world.angular };
@@ -99,6 +94,44 @@ fn composite_rigid_body_entries(
     for ((composite, inertia), x_wb) in data.ycrb.iter_mut().zip(&model.inertias).zip(&data.x_wb).skip(1) {
         *composite = rotated_shifted(inertia, &x_wb.rotation, &(x_wb.translation - reference));
     }
+}
+
+/// [`compute_joint_jacobians`] and [`world_terms_at_kinematics`] in one pass over the bodies:
+/// each body's world terms are formed while its pose is at hand, and its columns about the
+/// reference point from the pose's translation relative to it (`j_world` about the world origin
+/// beside them).
+fn kinematics_and_world_terms(model: &Model, data: &mut Data, q: &DVector<f64>) {
+    let mut previous = data.x_wb[0];
+    let mut reference = Vec3::zeros();
+    for i in 1..model.nbodies() {
+        let x_pb = joint_step(model, data, q, i);
+        let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
+        let x_wb = parent_pose(data, &previous, i, p) * x_pb;
+        if i == 1 {
+            reference = x_wb.translation;
+        }
+        data.x_wb[i] = x_wb;
+        let offset = x_wb.translation - reference;
+        let columns = data.j_world[iv..iv + nv].iter_mut().zip(&mut data.j_crba[iv..iv + nv]);
+        for ((world, about_reference), s) in columns.zip(&data.s[iv..iv + nv]) {
+            let angular = x_wb.rotation * s.angular;
+            let linear = x_wb.rotation * s.linear;
+            *world = Motion { linear: linear + x_wb.translation.cross(&angular), angular };
+            *about_reference = Motion { linear: linear + offset.cross(&angular), angular };
+        }
+        data.ycrb[i] = rotated_shifted(&model.inertias[i], &x_wb.rotation, &offset);
+        previous = x_wb;
+    }
+}
+
+/// RBDA §6.2's second pass over the world terms in `data.j_crba` and `data.ycrb`: composites
+/// from the leaves in, with `store(data, k, up, m, M_mk)` called for each dof k and each of k's
+/// ancestors-or-self m, `up` steps up the path from k (0 for m = k).
+fn composite_rigid_body_entries(
+    model: &Model,
+    data: &mut Data,
+    mut store: impl FnMut(&mut Data, usize, usize, usize, f64),
+) {
     for i in (1..model.nbodies()).rev() {
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
         let composite = data.ycrb[i];
