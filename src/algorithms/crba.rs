@@ -16,7 +16,7 @@ use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::math::{Mat3, Motion, SpatialInertia, Vec3};
-use crate::model::Model;
+use crate::model::{Joint, Model};
 use nalgebra::{DMatrix, DVector};
 
 /// Computes the full symmetric mass matrix `M(q)` (kg, kg·m, kg·m²) into `data.mass_matrix` and
@@ -112,12 +112,33 @@ fn kinematics_and_world_terms(model: &Model, data: &mut Data, q: &DVector<f64>) 
         }
         data.x_wb[i] = x_wb;
         let offset = x_wb.translation - reference;
-        let columns = data.j_world[iv..iv + nv].iter_mut().zip(&mut data.j_crba[iv..iv + nv]);
-        for ((world, about_reference), s) in columns.zip(&data.s[iv..iv + nv]) {
-            let angular = x_wb.rotation * s.angular;
-            let linear = x_wb.rotation * s.linear;
-            *world = Motion { linear: linear + x_wb.translation.cross(&angular), angular };
-            *about_reference = Motion { linear: linear + offset.cross(&angular), angular };
+        let (world, about_reference) = (&mut data.j_world[iv..iv + nv], &mut data.j_crba[iv..iv + nv]);
+        match &model.joints[i] {
+            // S = [0; axis] (hinge.rs): one rotation, and the linear parts are moments.
+            Joint::Hinge { .. } => {
+                let angular = x_wb.rotation * data.s[iv].angular;
+                world[0] = Motion { linear: x_wb.translation.cross(&angular), angular };
+                about_reference[0] = Motion { linear: offset.cross(&angular), angular };
+            }
+            // S = 1₆ (free.rs): the columns are the rotation's.
+            Joint::Free => {
+                for c in 0..3 {
+                    let axis = x_wb.rotation.column(c).into_owned();
+                    let translation = Motion { linear: axis, angular: Vec3::zeros() };
+                    (world[c], about_reference[c]) = (translation, translation);
+                    world[c + 3] = Motion { linear: x_wb.translation.cross(&axis), angular: axis };
+                    about_reference[c + 3] = Motion { linear: offset.cross(&axis), angular: axis };
+                }
+            }
+            _ => {
+                let columns = world.iter_mut().zip(about_reference.iter_mut());
+                for ((world, about_reference), s) in columns.zip(&data.s[iv..iv + nv]) {
+                    let angular = x_wb.rotation * s.angular;
+                    let linear = x_wb.rotation * s.linear;
+                    *world = Motion { linear: linear + x_wb.translation.cross(&angular), angular };
+                    *about_reference = Motion { linear: linear + offset.cross(&angular), angular };
+                }
+            }
         }
         data.ycrb[i] = rotated_shifted(&model.inertias[i], &x_wb.rotation, &offset);
         previous = x_wb;
