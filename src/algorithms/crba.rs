@@ -96,10 +96,9 @@ fn world_terms_at_kinematics(model: &Model, data: &mut Data) {
     }
 }
 
-/// [`compute_joint_jacobians`] and [`world_terms_at_kinematics`] in one pass over the bodies:
-/// each body's world terms are formed while its pose is at hand, and its columns about the
-/// reference point from the pose's translation relative to it (`j_world` about the world origin
-/// beside them).
+/// [`compute_joint_jacobians`] and [`world_terms_at_kinematics`] in one pass over the bodies,
+/// each body's world terms formed while its pose is at hand, with the same arithmetic (the
+/// world's step, which takes the two apart, gets M to the last bit).
 fn kinematics_and_world_terms(model: &Model, data: &mut Data, q: &DVector<f64>) {
     let mut previous = data.x_wb[0];
     let mut reference = Vec3::zeros();
@@ -111,36 +110,34 @@ fn kinematics_and_world_terms(model: &Model, data: &mut Data, q: &DVector<f64>) 
             reference = x_wb.translation;
         }
         data.x_wb[i] = x_wb;
-        let offset = x_wb.translation - reference;
+        let t = &x_wb.translation;
         let (world, about_reference) = (&mut data.j_world[iv..iv + nv], &mut data.j_crba[iv..iv + nv]);
         match &model.joints[i] {
-            // S = [0; axis] (hinge.rs): one rotation, and the linear parts are moments.
+            // S = [0; axis] (hinge.rs): one rotation, and the linear part is a moment (the
+            // products with S's zeros that `act_motion` forms add exact zeros).
             Joint::Hinge { .. } => {
                 let angular = x_wb.rotation * data.s[iv].angular;
-                world[0] = Motion { linear: x_wb.translation.cross(&angular), angular };
-                about_reference[0] = Motion { linear: offset.cross(&angular), angular };
+                world[0] = Motion { linear: t.cross(&angular), angular };
             }
             // S = 1₆ (free.rs): the columns are the rotation's.
             Joint::Free => {
                 for c in 0..3 {
                     let axis = x_wb.rotation.column(c).into_owned();
-                    let translation = Motion { linear: axis, angular: Vec3::zeros() };
-                    (world[c], about_reference[c]) = (translation, translation);
-                    world[c + 3] = Motion { linear: x_wb.translation.cross(&axis), angular: axis };
-                    about_reference[c + 3] = Motion { linear: offset.cross(&axis), angular: axis };
+                    world[c] = Motion { linear: axis, angular: Vec3::zeros() };
+                    world[c + 3] = Motion { linear: t.cross(&axis), angular: axis };
                 }
             }
             _ => {
-                let columns = world.iter_mut().zip(about_reference.iter_mut());
-                for ((world, about_reference), s) in columns.zip(&data.s[iv..iv + nv]) {
-                    let angular = x_wb.rotation * s.angular;
-                    let linear = x_wb.rotation * s.linear;
-                    *world = Motion { linear: linear + x_wb.translation.cross(&angular), angular };
-                    *about_reference = Motion { linear: linear + offset.cross(&angular), angular };
+                for (world, s) in world.iter_mut().zip(&data.s[iv..iv + nv]) {
+                    *world = x_wb.act_motion(s);
                 }
             }
         }
-        data.ycrb[i] = rotated_shifted(&model.inertias[i], &x_wb.rotation, &offset);
+        for (column, world) in about_reference.iter_mut().zip(world.iter()) {
+            *column =
+                Motion { linear: world.linear + world.angular.cross(&reference), angular: world.angular };
+        }
+        data.ycrb[i] = rotated_shifted(&model.inertias[i], &x_wb.rotation, &(x_wb.translation - reference));
         previous = x_wb;
     }
 }
