@@ -194,3 +194,38 @@ fn rotated_shifted(inertia: &SpatialInertia, r: &Mat3, t: &Vec3) -> SpatialInert
     }
     SpatialInertia { mass: m, first_moment: h + t * m, inertia_origin: out }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Transform;
+
+    #[test]
+    fn rotated_shifted_is_the_inertia_transformed_by_the_pose() {
+        let inertia = SpatialInertia::new(
+            3.5,
+            Vec3::new(0.2, -0.1, 0.4),
+            Mat3::new(0.3, 0.02, -0.01, 0.02, 0.5, 0.03, -0.01, 0.03, 0.4),
+        );
+        let pose = Transform::from_xyz_rpy([1.5, -0.7, 2.1], [0.4, -1.1, 2.5]);
+        let expected = inertia.transformed(&pose);
+        let got = rotated_shifted(&inertia, &pose.rotation, &pose.translation);
+        assert_eq!(got.mass, expected.mass);
+        assert!((got.first_moment - expected.first_moment).norm() < 1e-12);
+        assert!((got.inertia_origin - expected.inertia_origin).norm() < 1e-12);
+        assert_eq!(got.inertia_origin, got.inertia_origin.transpose(), "symmetric to the bit");
+    }
+
+    #[test]
+    fn all_finite_sees_a_nan_or_an_infinity_anywhere() {
+        let finite: Vec<f64> = (0..11).map(|k| k as f64 * 1e300 - 3.0).collect();
+        assert!(all_finite(&finite));
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for k in 0..finite.len() {
+                let mut values = finite.clone();
+                values[k] = bad;
+                assert!(!all_finite(&values), "{bad} at {k}");
+            }
+        }
+    }
+}
