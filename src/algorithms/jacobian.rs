@@ -7,6 +7,7 @@ use super::check::check_q;
 use super::kinematics::joint_step;
 use crate::data::Data;
 use crate::error::DynamicsError;
+use crate::math::Transform;
 use crate::model::{Model, NO_DOF};
 use nalgebra::{DMatrix, DVector};
 
@@ -28,15 +29,29 @@ pub fn compute_joint_jacobians(
     q: &DVector<f64>,
 ) -> Result<(), DynamicsError> {
     check_q(model, q)?;
+    let mut previous = data.x_wb[0];
     for i in 1..model.nbodies() {
-        joint_step(model, data, q, i);
+        let x_pb = joint_step(model, data, q, i);
         let (p, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
-        data.x_wb[i] = data.x_wb[p] * data.x_pb[i];
-        for k in iv..iv + nv {
-            data.j_world[k] = data.x_wb[i].act_motion(&data.s[k]);
+        let x_wb = parent_pose(data, &previous, i, p) * x_pb;
+        data.x_wb[i] = x_wb;
+        for (column, s) in data.j_world[iv..iv + nv].iter_mut().zip(&data.s[iv..iv + nv]) {
+            *column = x_wb.act_motion(s);
         }
+        previous = x_wb;
     }
     Ok(())
+}
+
+/// The world pose of body `i`'s parent `p`: `previous` (body i − 1's, still in registers) when
+/// p = i − 1, as along a chain, which spares reading back the pose just stored.
+#[inline(always)]
+pub(crate) fn parent_pose(data: &Data, previous: &Transform, i: usize, p: usize) -> Transform {
+    if p + 1 == i {
+        *previous
+    } else {
+        data.x_wb[p]
+    }
 }
 
 /// The 6×nv Jacobian of frame `frame` (an index into [`Model::frames`]) from the columns of the

@@ -19,16 +19,19 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &DVector<f64>) -> R
     Ok(())
 }
 
-/// Joint `i`'s transform and subspace at `q`: sets `data.x_pb[i]` and `data.s` of its dofs.
+/// Joint `i`'s transform and subspace at `q`: sets `data.x_pb[i]` and `data.s` of its dofs, and
+/// returns `x_pb[i]` (the caller's copy in registers, not read back from memory).
 #[inline(always)]
-pub(crate) fn joint_step(model: &Model, data: &mut Data, q: &DVector<f64>, i: usize) {
+pub(crate) fn joint_step(model: &Model, data: &mut Data, q: &DVector<f64>, i: usize) -> Transform {
     let joint = &model.joints[i];
     let (iq, iv) = (model.idx_q[i], model.idx_v[i]);
-    data.x_pb[i] = joint.placed_transform(
+    let x_pb = joint.placed_transform(
         &model.placements[i],
         &q.as_slice()[iq..iq + joint.nq()],
         &mut data.s[iv..iv + joint.nv()],
     );
+    data.x_pb[i] = x_pb;
+    x_pb
 }
 
 /// Pose in the world of frame `frame` (see [`Model::frames`]) from the body poses of the last

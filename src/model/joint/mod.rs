@@ -159,12 +159,21 @@ impl Joint {
 
     /// `placement · x_jc(q)`: the child body's pose in the parent body's frame for a joint frame
     /// at `placement`, writing the subspace into `s` as [`Joint::transform_and_subspace`] does.
-    #[inline]
+    ///
+    /// Inlined into the kinematic loops for the hinge (the common joint, whose transform is a
+    /// few multiplications; a call returns the pose through memory, which the loop then waits
+    /// to read back); the other kinds are one call.
+    #[inline(always)]
     pub fn placed_transform(&self, placement: &Transform, q: &[f64], s: &mut [Motion]) -> Transform {
         match self {
             Joint::Hinge { axis } => hinge::placed_transform(placement, axis, q, s),
-            _ => placement * &self.transform_and_subspace(q, s),
+            _ => self.placed_transform_general(placement, q, s),
         }
+    }
+
+    #[inline(never)]
+    fn placed_transform_general(&self, placement: &Transform, q: &[f64], s: &mut [Motion]) -> Transform {
+        placement * &self.transform_and_subspace(q, s)
     }
 
     /// The bias `cJ = S̊ q̇` (child frame) for subspace `s` computed at the same `q`, velocity `v`.
