@@ -37,7 +37,7 @@ pub(crate) fn momentum_and_lagrangian_force(
     force: &mut [f64],
 ) {
     data.v[0] = Motion::zero();
-    for i in 1..model.nbodies() {
+    for (i, weight) in weights.iter_mut().enumerate().take(model.nbodies()).skip(1) {
         let (parent, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
         let u = data.x_pb[i].act_inv_motion(&data.v[parent]);
         let mut v = u;
@@ -49,7 +49,7 @@ pub(crate) fn momentum_and_lagrangian_force(
         let inertia = &model.inertias[i];
         data.f[i] = inertia.mul_motion(&v);
         let fall = data.x_wb[i].rotation.tr_mul(&-model.gravity);
-        weights[i] = inertia.mul_motion(&Motion::new(fall, crate::math::Vec3::zeros()));
+        *weight = inertia.mul_motion(&Motion::new(fall, crate::math::Vec3::zeros()));
     }
     for i in (1..model.nbodies()).rev() {
         let (parent, iv, nv) = (model.parents[i], model.idx_v[i], model.joints[i].nv());
