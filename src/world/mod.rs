@@ -7,7 +7,8 @@
 //! the speculative contacts and limit stops that the solved velocity closes, and solve again →
 //! integrate q on the manifold (free origins on straight lines, see
 //! [`crate::model::Joint::integrate_decoupled`]) and close the loop closures at the new
-//! configuration (SHAKE, [`LoopProjection`]) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
+//! configuration (SHAKE, [`LoopProjection`]; a linkage whose only rows are its own closures is
+//! stepped by RATTLE instead, `rattle.rs`) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely. With an integrator other than the
 //! default semi-implicit Euler ([`WorldOptions::integrator`]), steps without contacts, limits,

@@ -114,9 +114,8 @@ impl RattleBuffers {
         }
     }
 
-    /// Kinematics and the factor of M at `q` into `self.end`.
-    fn factor_end(&mut self, model: &Model, q: &DVector<f64>) -> Result<(), DynamicsError> {
-        compute_joint_jacobians(model, &mut self.end, q)?;
+    /// The factor of M into `self.end`, at the configuration of its kinematics.
+    fn factor_end(&mut self, model: &Model) -> Result<(), DynamicsError> {
         crba_packed_at_kinematics(model, &mut self.end);
         factor_packed_mass_matrix(model, &mut self.end)
     }
@@ -150,6 +149,7 @@ impl RattleBuffers {
         self.w.copy_from(&b.v_next);
         self.lambda[..rows].fill(0.0);
         let sweeps = options.iterations.max(SWEEP_LIMIT_FLOOR);
+        compute_joint_jacobians(model, &mut self.end, &b.q_next)?;
         let mut taken = 0;
         for sweep in 1..=sweeps {
             taken = sweep;
@@ -175,7 +175,7 @@ impl RattleBuffers {
             // The mean velocity ½(M₀⁻¹ + M₁⁻¹)p½ at the current q₁, and q₁ anew.
             self.w.copy_from(&self.p_half);
             solve_mass_matrix_slice(model, &b.data, self.w.as_mut_slice());
-            self.factor_end(model, &b.q_next)?;
+            self.factor_end(model)?;
             self.scratch.copy_from(&self.p_half);
             solve_mass_matrix_slice(model, &self.end, self.scratch.as_mut_slice());
             self.mean.copy_from(&self.w);
@@ -201,7 +201,7 @@ impl RattleBuffers {
         }
         // At q₁: p₁ = p½ + h/2 (∂L/∂q(q₁, M₁⁻¹p½) + τ), then v₁ = M₁⁻¹p₁ onto the tangent space
         // (J₁ M₁⁻¹ J₁ᵀ μ = J₁ v₁, v₁ ← v₁ − M₁⁻¹J₁ᵀμ).
-        self.factor_end(model, &b.q_next)?;
+        self.factor_end(model)?;
         self.scratch.copy_from(&self.p_half);
         solve_mass_matrix_slice(model, &self.end, self.scratch.as_mut_slice());
         let (p1, force) = (self.p0.as_mut_slice(), self.force.as_mut_slice());
