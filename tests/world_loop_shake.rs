@@ -175,3 +175,25 @@ fn a_tumbling_floating_triangle_stays_closed() {
     assert!(gap < 1e-13, "q moved by {gap:e} more than h v");
     assert!(de < 0.05, "|ΔE|/E {de:e}");
 }
+
+#[test]
+fn a_four_bar_spun_too_fast_for_the_step_falls_back_to_the_first_order_step() {
+    // RATTLE's sweeps contract by about h‖v‖/L: with the crank at 300 rad/s a 1/60 s step turns
+    // it by 5 rad and they diverge; the step is then the first-order one with SHAKE, finite.
+    // At 3 rad/s RATTLE converges.
+    for (rate, expected) in [(300.0, "semi-implicit-euler"), (3.0, "rattle")] {
+        let (mut w, m) = gelenk::scenes::four_bar_world(options(1.0 / 60.0)).unwrap();
+        w.multibody_mut(m).state.v[0] = rate;
+        w.step().unwrap();
+        let closure = w.constraint_violation();
+        let s = &w.multibody(m).state;
+        println!(
+            "crank at {rate} rad/s: {}, closure {:e} m, v {:?}",
+            w.stats().integrator,
+            closure,
+            s.v.as_slice()
+        );
+        assert_eq!(w.stats().integrator, expected, "crank at {rate} rad/s");
+        assert!(s.q.iter().chain(s.v.iter()).all(|x| x.is_finite()));
+    }
+}

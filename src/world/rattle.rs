@@ -30,7 +30,9 @@
 //! space at q₁. The implicit equations are solved by fixed-point sweeps, each one M₁'s
 //! factorization at the current q₁ and one quasi-Newton step on λ along M₀⁻¹J₀ᵀ (as SHAKE),
 //! until the closure error and the change of q₁ are below [`LoopProjection::tolerance`]; the
-//! sweeps contract by about h‖v‖/L each. τ (joint torques and this step's external forces)
+//! sweeps contract by about h‖v‖/L each. Sweeps that do not converge within their limit (a
+//! step far too long for the linkage's speed) leave the step to the first-order step and
+//! SHAKE. τ (joint torques and this step's external forces)
 //! is held constant over the step.
 //!
 //! It applies to multibodies of hinges, sliders and fixed joints without springs or damping
@@ -81,6 +83,9 @@ pub(crate) struct RattleBuffers {
     scratch: DVector<f64>,
     /// The next estimate of q₁.
     q_trial: DVector<f64>,
+    /// The first-order step's q₁ and v₁, restored when the sweeps do not converge.
+    q_first: DVector<f64>,
+    v_first: DVector<f64>,
     /// J₀, row-major (rows × nv).
     j0: Vec<f64>,
     /// The closure impulses λ (rows).
@@ -109,6 +114,8 @@ impl RattleBuffers {
             mean: DVector::zeros(nv),
             scratch: DVector::zeros(nv),
             q_trial: DVector::zeros(nq),
+            q_first: DVector::zeros(nq),
+            v_first: DVector::zeros(nv),
             j0: vec![0.0; rows * nv],
             lambda: vec![0.0; rows],
         }
@@ -124,7 +131,10 @@ impl RattleBuffers {
     /// `b.q_next` and `b.v_next`. `b.data` must hold the kinematics and the mass-matrix factor
     /// at the step's start, and `b.q_next`, `b.v_next` a first guess of the step (the
     /// first-order step's); on return `b.data` holds poses and Jacobians at `b.q_next`.
-    /// Returns the fixed-point sweeps taken.
+    /// Returns whether the sweeps converged within their limit (the closure error and the
+    /// change of q₁ below the tolerance): if not (a step far too long for the linkage's speed,
+    /// h‖v‖/L of order one), `b.q_next`, `b.v_next` and `b.data` are left as they came, for
+    /// the first-order step to be finished by SHAKE.
     pub(crate) fn step<'a>(
         &mut self,
         b: &mut Multibody,
@@ -132,8 +142,10 @@ impl RattleBuffers {
         projection: &mut ProjectionBuffers,
         options: &LoopProjection,
         h: f64,
-    ) -> Result<usize, DynamicsError> {
+    ) -> Result<bool, DynamicsError> {
         let model = &b.model;
+        self.q_first.copy_from(&b.q_next);
+        self.v_first.copy_from(&b.v_next);
         let nv = model.nv();
         self.tau.copy_from(&b.tau);
         self.tau += &b.tau_external;
@@ -150,9 +162,8 @@ impl RattleBuffers {
         self.lambda[..rows].fill(0.0);
         let sweeps = options.iterations.max(SWEEP_LIMIT_FLOOR);
         compute_joint_jacobians(model, &mut self.end, &b.q_next)?;
-        let mut taken = 0;
-        for sweep in 1..=sweeps {
-            taken = sweep;
+        let mut converged = false;
+        for _ in 0..sweeps {
             // p½ = p₀ + h/2 (∂L/∂q(q₀, w) + τ) + J₀ᵀλ, w = M₀⁻¹p½ of the previous sweep.
             let force = self.force.as_mut_slice();
             let scratch = self.scratch.as_mut_slice();
@@ -184,11 +195,18 @@ impl RattleBuffers {
             model.integrate(&b.state.q, &self.mean, h, &mut self.q_trial);
             let change =
                 self.q_trial.iter().zip(b.q_next.iter()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            if !self.q_trial.iter().all(|x| x.is_finite()) {
+                break;
+            }
             b.q_next.copy_from(&self.q_trial);
             // The closure error at the new q₁, and λ's quasi-Newton step h J₀M₀⁻¹J₀ᵀ δλ = −e.
             compute_joint_jacobians(model, &mut self.end, &b.q_next)?;
             let error = projection.errors(model, &self.end, closures.clone());
+            if !error.is_finite() {
+                break;
+            }
             if error <= options.tolerance && change <= options.tolerance {
+                converged = true;
                 break;
             }
             for i in 0..rows {
@@ -198,6 +216,11 @@ impl RattleBuffers {
             for (lambda, mu) in self.lambda[..rows].iter_mut().zip(&projection.mu[..rows]) {
                 *lambda -= mu;
             }
+        }
+        if !converged {
+            b.q_next.copy_from(&self.q_first);
+            b.v_next.copy_from(&self.v_first);
+            return Ok(false);
         }
         // At q₁: p₁ = p½ + h/2 (∂L/∂q(q₁, M₁⁻¹p½) + τ), then v₁ = M₁⁻¹p₁ onto the tangent space
         // (J₁ M₁⁻¹ J₁ᵀ μ = J₁ v₁, v₁ ← v₁ − M₁⁻¹J₁ᵀμ).
@@ -225,6 +248,6 @@ impl RattleBuffers {
         projection.correction(nv);
         b.v_next += &projection.delta;
         compute_joint_jacobians(model, &mut b.data, &b.q_next)?;
-        Ok(taken)
+        Ok(true)
     }
 }

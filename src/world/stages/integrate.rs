@@ -83,17 +83,18 @@ pub(crate) fn run(
             if !b.kinematic && b.factored {
                 let only_own_loops = sources.only_own_loops(i, b, &loops.closures);
                 let closures = own(&loops.closures, i);
-                match buffers.rattle.take() {
-                    Some(mut rattle) if projection.iterations > 0 && only_own_loops => {
-                        let result = rattle.step(b, closures, buffers, projection, h);
-                        buffers.rattle = Some(rattle);
-                        result.map_err(dynamics_error(&names[i]))?;
-                        rattled += 1;
-                    }
-                    rattle => {
-                        buffers.rattle = rattle;
-                        buffers.shake(b, closures, projection, h).map_err(dynamics_error(&names[i]))?;
-                    }
+                let mut rattle = buffers.rattle.take();
+                let stepped = match rattle.as_mut() {
+                    Some(rattle) if projection.iterations > 0 && only_own_loops => rattle
+                        .step(b, closures.clone(), buffers, projection, h)
+                        .map_err(dynamics_error(&names[i])),
+                    _ => Ok(false),
+                };
+                buffers.rattle = rattle;
+                if stepped? {
+                    rattled += 1;
+                } else {
+                    buffers.shake(b, closures, projection, h).map_err(dynamics_error(&names[i]))?;
                 }
             }
         }
