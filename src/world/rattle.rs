@@ -133,8 +133,8 @@ impl RattleBuffers {
     /// first-order step's); on return `b.data` holds poses and Jacobians at `b.q_next`.
     /// Returns whether the sweeps converged within their limit (the closure error and the
     /// change of q₁ below the tolerance): if not (a step far too long for the linkage's speed,
-    /// h‖v‖/L of order one), `b.q_next`, `b.v_next` and `b.data` are left as they came, for
-    /// the first-order step to be finished by SHAKE.
+    /// h‖v‖/L of order one), `b.q_next`, `b.v_next` and the kinematics and factor in `b.data`
+    /// are left as they came, for the first-order step to be finished by SHAKE.
     pub(crate) fn step<'a>(
         &mut self,
         b: &mut Multibody,
