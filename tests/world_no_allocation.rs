@@ -263,3 +263,23 @@ fn a_resting_ragdoll_steps_without_allocating() {
     assert!(s.world.multibody(0).factorizations() > before, "no factorization in the counted steps");
     assert_eq!(count, 0, "World::step allocated {count} times in 100 resting steps");
 }
+
+#[test]
+fn rattle_steps_of_a_linkage_allocate_nothing() {
+    // The default step of the free four-bar is RATTLE (its only rows its own closure): the
+    // fixed-point sweeps, the factorizations at the step's end and the velocity projection run
+    // in buffers sized when the loop was added.
+    let mut options = WorldOptions { dt: 1.0 / 60.0, ..Default::default() };
+    options.sleep.enabled = false;
+    let (mut four_bar, _) = gelenk::report::stability::four_bar_world(options).unwrap();
+    for _ in 0..10 {
+        four_bar.step().unwrap();
+    }
+    assert_eq!(four_bar.stats().integrator, "rattle");
+    let count = allocations_during(|| {
+        for _ in 0..100 {
+            four_bar.step().unwrap();
+        }
+    });
+    assert_eq!(count, 0, "RATTLE steps allocated {count} times");
+}

@@ -7,7 +7,8 @@
 //! the speculative contacts and limit stops that the solved velocity closes, and solve again →
 //! integrate q on the manifold (free origins on straight lines, see
 //! [`crate::model::Joint::integrate_decoupled`]) and close the loop closures at the new
-//! configuration (SHAKE, [`LoopProjection`]) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
+//! configuration (SHAKE, [`LoopProjection`]; a linkage whose only rows are its own closures is
+//! stepped by RATTLE instead, `rattle.rs`) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely. With an integrator other than the
 //! default semi-implicit Euler ([`WorldOptions::integrator`]), steps without contacts, limits,
@@ -28,6 +29,7 @@ mod materials;
 mod multibody;
 mod options;
 mod projection;
+mod rattle;
 mod sleep;
 pub mod smooth;
 mod stages;
@@ -145,6 +147,8 @@ pub struct World {
     stats: StepStats,
     /// Bodies swept by continuous collision at any speed ([`World::set_always_swept`]).
     always_swept: Vec<(usize, usize)>,
+    /// Multibodies the last step advanced by RATTLE ([`rattle`]).
+    rattled: usize,
 }
 
 /// A world is `Send`: it can be built on one thread and stepped on another (batched rollouts
@@ -177,6 +181,7 @@ impl World {
             accumulator: 0.0,
             stats: StepStats::default(),
             always_swept: Vec::new(),
+            rattled: 0,
         }
     }
 
@@ -365,8 +370,7 @@ impl World {
             let m = multibody_a;
             let rows = projection::ProjectionBuffers::rows_for(loops::own(&self.loops.closures, m));
             let model = &self.bodies[m].model;
-            self.loops.projections[m] =
-                Some(projection::ProjectionBuffers::new(model.nv(), model.nq(), rows));
+            self.loops.projections[m] = Some(projection::ProjectionBuffers::new(model, rows));
         }
         Ok(())
     }
@@ -597,7 +601,20 @@ impl World {
     fn integrate(&mut self, h: f64, smooth: bool) -> Result<(), StepError> {
         let steppers = smooth.then_some(&mut self.smooth);
         let (v, projection) = (&self.dofs.v_free, &self.options.loop_projection);
-        stages::integrate::run(&mut self.bodies, &self.names, v, &mut self.loops, steppers, projection, h)?;
+        let sources = stages::integrate::RowSources {
+            contacts: &self.contacts,
+            limit_margin: self.options.limits.margin,
+        };
+        self.rattled = stages::integrate::run(
+            &mut self.bodies,
+            &self.names,
+            v,
+            &mut self.loops,
+            steppers,
+            projection,
+            &sources,
+            h,
+        )?;
         stages::integrate::commit(&mut self.bodies, h);
         self.time += h;
         self.steps += 1;
@@ -621,8 +638,16 @@ impl World {
         timer: PhaseTimer,
         smooth: bool,
     ) {
-        let integrator =
-            if smooth { smooth::integrator_name(&self.options.integrator) } else { "semi-implicit-euler" };
+        let moving = self.bodies.iter().filter(|b| !b.asleep && !b.kinematic).count();
+        let integrator = if smooth {
+            smooth::integrator_name(&self.options.integrator)
+        } else if self.rattled == 0 {
+            "semi-implicit-euler"
+        } else if self.rattled == moving {
+            "rattle"
+        } else {
+            "semi-implicit-euler+rattle"
+        };
         self.stats = StepStats::gather(
             (self.steps, self.time),
             &self.contacts,

@@ -149,7 +149,8 @@ pub struct WorldOptions {
     /// (`gelenk simulate` and `gelenk bench world` turn it on where they report phases).
     pub time_phases: bool,
     /// The position correction of loop closures within a multibody after each step (SHAKE
-    /// after a velocity-level step, a mass-metric projection after a smooth one).
+    /// after a velocity-level step, or RATTLE's sweeps for a linkage whose only rows are its
+    /// own closures; a mass-metric projection after a smooth step).
     pub loop_projection: super::LoopProjection,
     /// Integrator of the steps without contacts, limits, motors or joint friction (see
     /// [`super::smooth`]); the default, semi-implicit Euler, keeps the velocity-level step for

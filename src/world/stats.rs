@@ -46,8 +46,11 @@ pub struct StepStats {
     /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
     /// integration + sleeping; zeros unless [`super::WorldOptions::time_phases`] is on.
     pub phase_ns: [u64; 6],
-    /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step, else the
-    /// name of [`super::WorldOptions::integrator`] (a smooth step, see [`super::smooth`]).
+    /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step,
+    /// `"rattle"` when every moving multibody was a linkage stepped by RATTLE (its only rows
+    /// its own loop closures: see [`super::rattle`]), `"semi-implicit-euler+rattle"` when some
+    /// were, else the name of [`super::WorldOptions::integrator`] (a smooth step, see
+    /// [`super::smooth`]).
     pub integrator: &'static str,
     /// Colliders swept by continuous collision, time-of-impact queries and the speculative
     /// contacts they added ([`super::WorldOptions::continuous_collision`]).
