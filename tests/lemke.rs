@@ -380,7 +380,7 @@ fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
     let problem = world.problem().clone();
     assert!(lcp_of(&problem, 8).q.len() >= 1500, "a pile LCP of {} variables", lcp_of(&problem, 8).q.len());
     let (_, r, pivots) = lemke_certified(&problem);
-    assert!(r <= 1e-10, "certified residual {r:e} m/s after {pivots} pivots");
+    assert!(r <= 1e-9, "certified residual {r:e} m/s after {pivots} pivots");
 }
 
 /// The problem of each of `steps` steps of a ten-box stack at `dt` with Lemke alone.
