@@ -7,15 +7,15 @@
 //!
 //! Before timing, the LCP size, the pivots, the LCP's natural residual and the residual that
 //! certifies the impulses (on the pyramid Lemke solves) are printed; a solve that fails aborts
-//! the benchmark. The certified residual is printed, not required: on the pile it is the
-//! dissipation gap of contacts with the smallest normal impulses, which can exceed the world's
-//! 1e-8 m/s while the LCP is solved to 1e-9 (docs/solvers.md, "Known limits").
+//! the benchmark. Each problem is timed cold (`LemkeMemory::off()`: the LCP formed and solved
+//! from the identity basis) and warm (the solver's memory of the same problem: M kept, only q
+//! formed, the last basis the start, as for a resting world that keeps W).
 //!
 //! Run: `cargo bench --bench lemke`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use gelenk::constraints::{ConstraintProblem, FrictionModel};
-use gelenk::solvers::{lcp_of, lemke_with_report, residuals, ConstraintSolver, LemkeSolver};
+use gelenk::solvers::{lcp_of, lemke_with_report, residuals, ConstraintSolver, LemkeMemory, LemkeSolver};
 use gelenk::world::World;
 use nalgebra::DVector;
 use std::hint::black_box;
@@ -39,7 +39,7 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("lemke");
     group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3)).sample_size(10);
     for (name, problem) in &problems {
-        let mut solver = LemkeSolver::default();
+        let mut solver = LemkeSolver { memory: LemkeMemory::off(), ..Default::default() };
         let size = lcp_of(problem, solver.facets).q.len();
         let mut lambda = DVector::zeros(problem.rows());
         let info = solver.solve(problem, &mut lambda).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -58,11 +58,16 @@ fn bench(c: &mut Criterion) {
             report.refactorizations,
             report.residual
         );
-        group.bench_function(BenchmarkId::new(*name, size), |b| {
+        group.bench_function(BenchmarkId::new(format!("{name}-cold"), size), |b| {
             b.iter(|| {
                 lambda.fill(0.0);
                 black_box(solver.solve(problem, &mut lambda).is_ok())
             })
+        });
+        let mut warm = LemkeSolver::default();
+        warm.solve(problem, &mut lambda).unwrap_or_else(|e| panic!("{name}: {e}"));
+        group.bench_function(BenchmarkId::new(format!("{name}-warm"), size), |b| {
+            b.iter(|| black_box(warm.solve(problem, &mut lambda).is_ok()))
         });
     }
     group.finish();

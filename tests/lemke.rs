@@ -6,8 +6,12 @@
 //! heavy box on a light one (mass ratio 1:1000), a 400-variable stack of ten boxes and every step
 //! of the ten-box stack of the hard cases at each time step of the stability table are solved to
 //! residuals certified by the shared `solvers::residuals`, and so is a twenty-box stack's LCP
-//! whose paths end on slightly infeasible bases; on frictionless contacts, whose row
-//! velocities are unique, Lemke and clarabel agree.
+//! whose paths end on slightly infeasible bases; the 2000-variable pile LCP of the benchmark
+//! certifies far below the world's tolerance; a solve warm-started from the last basis or from
+//! a basis read from impulses certifies like a cold one, supports the stack with the same
+//! normal impulse and pivots less, and a problem with the last M is solved from its last basis
+//! with q alone formed; on frictionless contacts, whose row velocities are unique, Lemke and
+//! clarabel agree.
 
 use gelenk::collision::MeshOptions;
 use gelenk::constraints::{ConstraintProblem, FrictionModel};
@@ -16,8 +20,8 @@ use gelenk::math::{Transform, Vec3};
 use gelenk::model::{RigidInertia, Shape};
 use gelenk::report::stability::{free_body, options, Setting, TIME_STEPS};
 use gelenk::solvers::{
-    lcp_of, lemke, lemke_with_report, residuals, ClarabelSolver, ConstraintSolver, LemkeOptions, LemkeSolver,
-    SolverError,
+    lcp_of, lemke, lemke_with_report, residuals, ClarabelSolver, ConstraintSolver, LemkeMemory, LemkeOptions,
+    LemkeSolver, SolverError,
 };
 use gelenk::world::{SolverKind, World, WorldOptions};
 use nalgebra::{DMatrix, DVector};
@@ -359,4 +363,111 @@ fn lemke_and_clarabel_agree_on_frictionless_contacts() {
     let scale = problem.bias.amax().max(1e-3);
     let difference = (&wl - &wc).amax();
     assert!(difference <= 1e-6 * scale, "w differs by {difference:e} (scale {scale:e})");
+}
+
+#[test]
+fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
+    // models/pile.toml at step 300 (the benchmark's 2000-variable LCP, about 200 contacts):
+    // the answer's basic values are refined with residuals in double-double arithmetic, so the
+    // impulses certify far below the world's 1e-8 m/s, where the dissipation gap of contacts
+    // with the smallest normal impulses (per unit of their friction bound) amplifies any
+    // inaccuracy of the basic values.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pile.toml");
+    let mut world = gelenk::io::scene::load_file(&path).unwrap().world;
+    for _ in 0..=300 {
+        world.step().unwrap();
+    }
+    let problem = world.problem().clone();
+    assert!(lcp_of(&problem, 8).q.len() >= 1500, "a pile LCP of {} variables", lcp_of(&problem, 8).q.len());
+    let (_, r, pivots) = lemke_certified(&problem);
+    assert!(r <= 1e-9, "certified residual {r:e} m/s after {pivots} pivots");
+}
+
+/// The problem of each of `steps` steps of a ten-box stack at `dt` with Lemke alone.
+fn stack_problems(dt: f64, steps: usize) -> Vec<ConstraintProblem> {
+    let mut w = World::new(options(&Setting::new(SolverKind::Lemke { facets: 8 }, dt)));
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+    for k in 0..10 {
+        add_box(&mut w, &format!("box{k}"), 1.0, 0.05 + 0.1 * k as f64, 0.1 * k as f64);
+    }
+    (0..steps)
+        .map(|_| {
+            w.step().unwrap();
+            w.problem().clone()
+        })
+        .collect()
+}
+
+/// Lemke's answer to `problem` by `solver` from the warm start `lambda`: the impulses, the
+/// certified residual, the pivots and whether the solve started from a given basis.
+fn solve_with(
+    solver: &mut LemkeSolver,
+    problem: &ConstraintProblem,
+    mut lambda: DVector<f64>,
+) -> (DVector<f64>, f64, usize, bool) {
+    let info = solver.solve(problem, &mut lambda).unwrap_or_else(|e| panic!("lemke: {e}"));
+    let mut pyramid = problem.clone();
+    pyramid.friction = FrictionModel::Pyramid { facets: solver.facets };
+    let r = solver.certify(&residuals(&pyramid, &lambda, &mut DVector::zeros(0)));
+    (lambda, r, info.iterations, solver.memory.last.warm_started)
+}
+
+/// Σ λ_n over the contacts: the support the stack gets, unique where the impulses need not be.
+fn normal_sum(problem: &ConstraintProblem, lambda: &DVector<f64>) -> f64 {
+    problem.contacts.iter().map(|c| lambda[c.normal]).sum()
+}
+
+#[test]
+fn a_warm_started_solve_equals_a_cold_one_with_fewer_pivots() {
+    // Consecutive steps of a resting ten-box stack: the solver that solved step 40 starts step
+    // 41 from its final basis (the same contact rows) and the one given step 41's answer as its
+    // warm start reads its basis from those impulses; both certify like a cold solve, support
+    // the stack with the same normal impulse and pivot less.
+    let problems = stack_problems(1.0 / 60.0, 42);
+    let (before, now) = (&problems[40], &problems[41]);
+    assert_eq!(before.laws, now.laws, "the same rows at both steps");
+    let zeros = DVector::zeros(now.rows());
+    let (cold, r_cold, pivots_cold, warm_cold) =
+        solve_with(&mut LemkeSolver { memory: LemkeMemory::off(), ..Default::default() }, now, zeros.clone());
+    assert!(!warm_cold && r_cold <= 1e-8 && pivots_cold > 10, "cold: {r_cold:e} m/s, {pivots_cold} pivots");
+    let mut solver = LemkeSolver::default();
+    let (last, _, _, _) = solve_with(&mut solver, before, zeros.clone());
+    let (kept, r_kept, pivots_kept, warm_kept) = solve_with(&mut solver, now, last);
+    let (read, r_read, pivots_read, warm_read) = solve_with(&mut LemkeSolver::default(), now, cold.clone());
+    let total = normal_sum(now, &cold);
+    for (name, lambda, r, pivots, warm) in [
+        ("kept basis", &kept, r_kept, pivots_kept, warm_kept),
+        ("basis read from λ", &read, r_read, pivots_read, warm_read),
+    ] {
+        assert!(warm, "{name}: started from a basis");
+        assert!(r <= 1e-8, "{name}: certified residual {r:e} m/s");
+        assert!(pivots < pivots_cold, "{name}: {pivots} pivots, cold {pivots_cold}");
+        let sum = normal_sum(now, lambda);
+        assert!((sum - total).abs() <= 1e-9 * total, "{name}: Σλ_n {sum} against {total}");
+    }
+}
+
+#[test]
+fn an_unchanged_matrix_is_reused_and_a_new_q_solved_from_the_last_basis() {
+    // The same problem with its bias scaled by 1.001 (as a resting world poses it when it keeps
+    // W and forms only b): M is the last one, q alone is formed, and the last basis, whose
+    // values scale with q, answers it.
+    let problems = stack_problems(1.0 / 240.0, 60);
+    let problem = &problems[59];
+    let mut solver = LemkeSolver::default();
+    let (first, _, _, _) = solve_with(&mut solver, problem, DVector::zeros(problem.rows()));
+    let mut nudged = problem.clone();
+    nudged.bias *= 1.001;
+    let (lambda, r, pivots, warm) = solve_with(&mut solver, &nudged, first);
+    assert_eq!(solver.memory.reused_matrices, 1, "M kept");
+    // z0 in and out again where a value is below zero by rounding: two pivots at most.
+    assert!(warm && r <= 1e-8 && pivots <= 2, "{r:e} m/s after {pivots} pivots");
+    let (cold, r_cold, _, _) = solve_with(
+        &mut LemkeSolver { memory: LemkeMemory::off(), ..Default::default() },
+        &nudged,
+        DVector::zeros(problem.rows()),
+    );
+    assert!(r_cold <= 1e-8);
+    let (sum, total) = (normal_sum(&nudged, &lambda), normal_sum(&nudged, &cold));
+    assert!((sum - total).abs() <= 1e-9 * total, "Σλ_n {sum} against {total}");
 }

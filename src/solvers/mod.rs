@@ -18,7 +18,8 @@ pub use crate::error::SolverError;
 pub use chain::{ChainReport, Fallback, SolverChain};
 pub use conic::{cone_program, lifted_cone_program, ClarabelSolver, ConeProgram};
 pub use lemke::{
-    lcp_of, lemke, lemke_with_report, Lcp, LemkeOptions, LemkeReport, LemkeSolver, RayCertificate,
+    lcp_of, lemke, lemke_with_report, Lcp, LemkeMemory, LemkeOptions, LemkeReport, LemkeSolver,
+    RayCertificate,
 };
 pub use newton::NewtonSolver;
 pub use pgs::{PgsSolver, PgsWorkspace};

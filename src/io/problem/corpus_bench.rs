@@ -72,7 +72,7 @@ pub struct BenchOptions {
 
 impl Default for BenchOptions {
     fn default() -> Self {
-        Self { pgs_sweeps: 2000, lemke_max_rows: 400, time_limit: 10.0 }
+        Self { pgs_sweeps: 2000, lemke_max_rows: 2000, time_limit: 10.0 }
     }
 }
 

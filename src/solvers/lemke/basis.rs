@@ -342,7 +342,7 @@ impl Basis {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solvers::lemke::columns::Csc;
+    use crate::solvers::lemke::columns::{Csc, Matrix};
     use nalgebra::DMatrix;
     use rand::rngs::StdRng;
     use rand::{Rng, SeedableRng};
@@ -367,7 +367,8 @@ mod tests {
             |_, _| if rng.random_bool(0.4) { rng.random_range(-2.0..2.0) } else { 0.0 },
         );
         let m = m + DMatrix::identity(n, n) * 3.0;
-        let cols = Columns { m: Csc::from_dense(&m), d: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect() };
+        let m = Csc::from_dense(&m);
+        let cols = Columns { m: Matrix::Formed(&m), d: (0..n).map(|i| 1.0 + 0.1 * i as f64).collect() };
         let mut basis = Basis::identity(n);
         let (mut x, mut y, mut alpha) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         // Bring in z0 and z_j's at random positions, refactorizing now and then: each basis

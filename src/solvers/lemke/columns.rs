@@ -1,6 +1,7 @@
 //! Sparse columns: the LCP of a contact problem couples only contacts that share a body, so
 //! most of M is zero, and Lemke's work per pivot follows M's non-zeros, not its n².
 
+use super::lcp::SparseLcp;
 use nalgebra::DMatrix;
 
 /// An n × n matrix by compressed sparse columns (exact zeros dropped; rows within a column in
@@ -57,13 +58,24 @@ impl Csc {
 
     /// `diag(row_scale) · self · diag(col_scale)`.
     pub fn scaled(&self, row_scale: &[f64], col_scale: &[f64]) -> Self {
-        let mut out = self.clone();
-        for (j, &c) in col_scale.iter().enumerate().take(self.n) {
-            for e in self.start[j]..self.start[j + 1] {
-                out.values[e] *= row_scale[self.rows[e]] * c;
-            }
-        }
+        let mut out = Self::default();
+        self.scaled_into(row_scale, col_scale, &mut out);
         out
+    }
+
+    /// [`Self::scaled`] into `out` (its buffers reused).
+    pub fn scaled_into(&self, row_scale: &[f64], col_scale: &[f64], out: &mut Self) {
+        out.n = self.n;
+        out.start.clone_from(&self.start);
+        out.rows.clone_from(&self.rows);
+        out.values.clear();
+        out.values.reserve(self.values.len());
+        for (j, &c) in col_scale.iter().enumerate().take(self.n) {
+            let range = self.start[j]..self.start[j + 1];
+            out.values.extend(
+                self.rows[range.clone()].iter().zip(&self.values[range]).map(|(&i, &v)| v * row_scale[i] * c),
+            );
+        }
     }
 
     /// Size n.
@@ -110,19 +122,31 @@ impl Csc {
     }
 }
 
+/// M as a path reads it: formed by sparse columns, or a contact LCP's columns formed as read.
+#[derive(Clone, Copy)]
+pub(super) enum Matrix<'m> {
+    /// M by sparse columns.
+    Formed(&'m Csc),
+    /// A contact problem's LCP, its columns formed on first use.
+    Lazy(&'m SparseLcp),
+}
+
 /// The columns of Lemke's system `I w − M z − d z0 = q`: M (as the path sees it, possibly
 /// equilibrated) and the covering vector d.
-pub(super) struct Columns {
+pub(super) struct Columns<'m> {
     /// M.
-    pub m: Csc,
+    pub m: Matrix<'m>,
     /// The covering vector d (all entries positive).
     pub d: Vec<f64>,
 }
 
-impl Columns {
+impl Columns<'_> {
     /// Number of rows (and of z variables).
     pub fn n(&self) -> usize {
-        self.m.n()
+        match self.m {
+            Matrix::Formed(m) => m.n(),
+            Matrix::Lazy(lcp) => lcp.q.len(),
+        }
     }
 
     /// Calls `f(row, value)` for the non-zeros of the column of variable `var` in
@@ -133,9 +157,14 @@ impl Columns {
         if var < n {
             f(var, 1.0);
         } else if var < 2 * n {
-            let (rows, values) = self.m.column(var - n);
-            for (&i, &v) in rows.iter().zip(values) {
-                f(i, -v);
+            match self.m {
+                Matrix::Formed(m) => {
+                    let (rows, values) = m.column(var - n);
+                    for (&i, &v) in rows.iter().zip(values) {
+                        f(i, -v);
+                    }
+                }
+                Matrix::Lazy(lcp) => lcp.for_each_in_column(var - n, |i, v| f(i, -v)),
             }
         } else {
             for (i, &v) in self.d.iter().enumerate() {

@@ -23,19 +23,21 @@
 
 mod basis;
 mod columns;
+mod delassus;
+mod lazy;
 mod lcp;
 mod path;
 mod ray;
 mod scaling;
+mod solver;
 
 pub use lcp::{lcp_of, Lcp};
 pub use ray::RayCertificate;
+pub use solver::{LemkeMemory, LemkeSolver};
 
-use super::{check_problem, ConstraintSolver, SolveInfo, SolverError};
-use crate::constraints::{ConstraintProblem, FrictionModel};
+use super::SolverError;
 use basis::NONE;
-use columns::{Columns, Csc};
-use lcp::sparse_lcp_of;
+use columns::{Columns, Csc, Matrix};
 use nalgebra::{DMatrix, DVector};
 use path::{covering_of_basis, Path, PathEnd, PathOptions};
 use scaling::Scaling;
@@ -43,7 +45,10 @@ use scaling::Scaling;
 /// Options of Lemke's method.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LemkeOptions {
-    /// Maximum number of pivots per covering vector (0: 50 × the LCP size + 100).
+    /// Maximum number of pivots per covering vector (0: 10 × the LCP size + 100; a path from
+    /// the identity takes a fraction of the size on contact LCPs, and one that goes on far
+    /// longer is cycling through rounding, which the next covering vector escapes sooner).
+    /// Paths from a given basis (a warm start, a restart) get half the size + 100.
     pub max_pivots: usize,
     /// Pivot tolerance relative to the largest entry of the entering column B⁻¹a (an entry
     /// must exceed it to pivot).
@@ -79,6 +84,10 @@ pub struct LemkeReport {
     pub polished: bool,
     /// Paths restarted from a final basis that polishing left outside the tolerance.
     pub restarts: usize,
+    /// Principal pivots that repaired final bases with slightly negative values.
+    pub swaps: usize,
+    /// Whether the solve started from a given complementary basis (the last solve's).
+    pub warm_started: bool,
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
     /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
     pub near_solution: bool,
@@ -86,6 +95,9 @@ pub struct LemkeReport {
 
 /// Paths restarted from the final basis of a path whose answer misses the tolerance.
 const RESTARTS: usize = 2;
+
+/// Principal pivots tried on a final basis with slightly negative values ([`Path::clean`]).
+const SWAPS: usize = 16;
 
 /// The paths tried in order: (equilibrated, covering vector). The covering vectors are in the
 /// units of the LCP the path runs on.
@@ -172,125 +184,323 @@ pub fn lemke_with_report(
     if !m.iter().chain(q.iter()).all(|x| x.is_finite()) {
         return Err(SolverError::InvalidProblem("M or q holds NaN or infinity".into()));
     }
-    solve_sparse(&Csc::from_dense(m), q, options)
+    let m = Csc::from_dense(m);
+    let solution = solve_sparse(&m, q, options, &mut None, LemkeReport::default())?;
+    if !solution.within_tolerance {
+        let tolerance = options.tolerance * q.amax().max(1.0);
+        return Err(SolverError::Inaccurate {
+            solver: "lemke".into(),
+            residual: solution.report.residual,
+            tolerance,
+        });
+    }
+    Ok((solution.z, solution.report))
 }
 
-/// [`lemke_with_report`] on M by sparse columns (sizes and finiteness checked by the caller).
+/// M equilibrated (Ruiz's scaling, [`scaling`]) and its scaled copy, formed once per M.
+#[derive(Clone, Debug)]
+struct Equilibrated {
+    scaling: Scaling,
+    m: Csc,
+}
+
+impl Equilibrated {
+    /// The equilibration of `m`.
+    pub fn of(m: &Csc) -> Self {
+        let scaling = Scaling::equilibrate(m, 20);
+        Self { m: m.scaled(&scaling.row, &scaling.col), scaling }
+    }
+}
+
+/// An answer of [`solve_sparse`].
+struct Solution {
+    /// z.
+    pub z: DVector<f64>,
+    /// The facts of the solve.
+    pub report: LemkeReport,
+    /// Whether z's natural residual is within the tolerance; the best answer of paths that all
+    /// missed it otherwise (for a caller that certifies the answer by other residuals).
+    pub within_tolerance: bool,
+    /// The complementary basis z is the solution of (w_i = i, z_j = n + j, by position), when
+    /// it is one (not for a path's end point accepted with z0 dropped).
+    pub basis: Option<Vec<usize>>,
+}
+
+/// Whether `vars` is a complementary basis of an LCP of size n: one of w_i, z_i for every i.
+fn is_complementary(vars: &[usize], n: usize) -> bool {
+    let mut covered = vec![false; n];
+    vars.len() == n
+        && vars.iter().all(|&var| {
+            let i = if var < n { var } else { var.wrapping_sub(n) };
+            i < n && !std::mem::replace(&mut covered[i], true)
+        })
+}
+
+/// The options of a path for an LCP of size n, and the accepted natural residual.
+fn path_options(options: &LemkeOptions, q: &DVector<f64>) -> (PathOptions, f64) {
+    let n = q.len();
+    let path_options = PathOptions {
+        max_pivots: if options.max_pivots == 0 { 10 * n + 100 } else { options.max_pivots },
+        pivot_tolerance: options.pivot_tolerance,
+        refactor_interval: options.refactor_interval,
+    };
+    (path_options, options.tolerance * q.amax().max(1.0))
+}
+
+/// The natural residual of z with w = M z + q, M from `cols` (whose z-columns are −M's).
+fn residual_of_columns(cols: &Columns, q: &DVector<f64>, z: &[f64]) -> f64 {
+    let n = q.len();
+    let mut w = q.as_slice().to_vec();
+    for (j, &zj) in z.iter().enumerate() {
+        if zj != 0.0 {
+            cols.for_each(n + j, |i, v| w[i] -= v * zj);
+        }
+    }
+    let residual = z.iter().zip(&w).fold(0.0f64, |r, (z, w)| r.max(z.min(*w).abs()));
+    if residual.is_nan() {
+        f64::INFINITY
+    } else {
+        residual
+    }
+}
+
+/// A path of the unscaled LCP (M by `cols`, whose covering vector is replaced) from the
+/// complementary basis `start` (the last solve's, or one read from a warm start): a start
+/// whose values are feasible for this q is the answer without a pivot; one slightly
+/// infeasible is lifted by z0 along the covering vector B·1 and its path followed until z0
+/// leaves ([`Path::restart`]). Unscaled, as M's equilibration (twenty sweeps over its entries)
+/// would cost more than the few pivots from a basis near the answer. `Err` with the work done
+/// when the path ends otherwise or its answer misses the tolerance.
+fn solve_from_basis(
+    cols: &mut Columns,
+    q: &DVector<f64>,
+    options: &LemkeOptions,
+    start: &[usize],
+) -> Result<Solution, LemkeReport> {
+    let n = q.len();
+    let mut report = LemkeReport { warm_started: true, ..Default::default() };
+    if q.iter().all(|&x| x >= 0.0) {
+        return Ok(Solution {
+            z: DVector::zeros(n),
+            report,
+            within_tolerance: true,
+            basis: Some((0..n).collect()),
+        });
+    }
+    if !is_complementary(start, n) {
+        return Err(report);
+    }
+    let (mut path_options, tolerance) = path_options(options, q);
+    path_options.max_pivots = path_options.max_pivots.min(n / 2 + 100);
+    cols.d = covering_of_basis(cols, start);
+    let mut path = Path::new(cols, q.as_slice(), path_options);
+    let end = path.restart(start);
+    report.attempts += 1;
+    report.pivots += path.pivots;
+    report.lex_solves += path.lex_solves;
+    report.refactorizations += path.basis.refactorizations;
+    report.factorized_size = path.basis.factorized_size();
+    if end == PathEnd::Solved && path.polish(2).is_ok() {
+        report.polished = true;
+        let z: Vec<f64> = (0..n).map(|j| path.value(n + j).max(0.0)).collect();
+        let residual = residual_of_columns(cols, q, &z);
+        if residual <= tolerance {
+            report.residual = residual;
+            let basis = Some(path.basis.vars.clone());
+            return Ok(Solution { z: DVector::from_vec(z), report, within_tolerance: true, basis });
+        }
+    }
+    Err(report)
+}
+
+/// [`lemke_with_report`] on M by sparse columns (sizes and finiteness checked by the caller),
+/// with M's equilibration (formed here if `None`) and the report of work already done.
 fn solve_sparse(
     m: &Csc,
     q: &DVector<f64>,
     options: &LemkeOptions,
-) -> Result<(DVector<f64>, LemkeReport), SolverError> {
+    equilibrated: &mut Option<Equilibrated>,
+    mut report: LemkeReport,
+) -> Result<Solution, SolverError> {
     let n = q.len();
-    let mut report = LemkeReport::default();
     if q.iter().all(|&x| x >= 0.0) {
-        return Ok((DVector::zeros(n), report));
+        return Ok(Solution {
+            z: DVector::zeros(n),
+            report,
+            within_tolerance: true,
+            basis: Some((0..n).collect()),
+        });
     }
-    let tolerance = options.tolerance * q.amax().max(1.0);
-    let path_options = PathOptions {
-        max_pivots: if options.max_pivots == 0 { 50 * n + 100 } else { options.max_pivots },
-        pivot_tolerance: options.pivot_tolerance,
-        refactor_interval: options.refactor_interval,
-    };
-    let equilibrated = Scaling::equilibrate(m, 20);
+    let (path_options, tolerance) = path_options(options, q);
+    let scaled_q =
+        |scaling: &Scaling| -> Vec<f64> { q.iter().zip(&scaling.row).map(|(q, r)| q * r).collect() };
+    let equilibrated = equilibrated.get_or_insert_with(|| Equilibrated::of(m));
     let identity = Scaling::identity(n);
-    let mut best: Option<(DVector<f64>, f64)> = None;
+    let mut best: Option<(DVector<f64>, f64, Option<Vec<usize>>)> = None;
     let mut failure: Option<SolverError> = None;
     for (scaled, covering) in ATTEMPTS {
-        if !scaled && equilibrated.is_identity() {
+        if !scaled && equilibrated.scaling.is_identity() {
             continue; // the same path as the equilibrated one
         }
-        let scaling = if scaled { &equilibrated } else { &identity };
-        let cols = Columns { m: m.scaled(&scaling.row, &scaling.col), d: covering.vector(m, scaling) };
-        let q_scaled: Vec<f64> = q.iter().zip(&scaling.row).map(|(q, r)| q * r).collect();
-        let mut path = Path::new(&cols, &q_scaled, path_options);
-        let end = path.run();
-        report.attempts += 1;
-        report.pivots += path.pivots;
-        report.lex_solves += path.lex_solves;
-        report.refactorizations += path.basis.refactorizations;
-        report.factorized_size = path.basis.factorized_size();
-        let z_of = |path: &Path| -> Vec<f64> {
-            (0..n).map(|j| (scaling.col[j] * path.value(n + j)).max(0.0)).collect()
+        let scaling = if scaled { &equilibrated.scaling } else { &identity };
+        let cols = Columns {
+            m: Matrix::Formed(if scaled { &equilibrated.m } else { m }),
+            d: covering.vector(m, scaling),
         };
-        // The path's point, z0 dropped: a solution when the path ended there, and possibly one
-        // within the tolerance when it ended otherwise with z0 already near zero.
-        let mut z = z_of(&path);
-        let mut residual = natural_residual(m, q, &z);
-        if end == PathEnd::Solved && residual > tolerance && path.polish(2).is_ok() {
-            report.polished = true;
-            report.refactorizations += 1;
-            let polished = z_of(&path);
-            let polished_residual = natural_residual(m, q, &polished);
-            if polished_residual < residual {
-                (z, residual) = (polished, polished_residual);
-            }
-            // The final basis itself is slightly infeasible: a path restarted from it (and once
-            // more from that one's end), the best point kept.
-            let mut vars = path.basis.vars.clone();
-            for _ in 0..RESTARTS {
-                if residual <= tolerance {
-                    break;
-                }
-                let restart_cols = Columns { m: cols.m.clone(), d: covering_of_basis(&cols, &vars) };
-                let mut restart = Path::new(&restart_cols, &q_scaled, path_options);
-                let restart_end = restart.restart(&vars);
-                report.restarts += 1;
-                report.pivots += restart.pivots;
-                report.lex_solves += restart.lex_solves;
-                report.refactorizations += restart.basis.refactorizations;
-                if restart_end != PathEnd::Solved {
-                    break;
-                }
-                let restarted = z_of(&restart);
-                let restarted_residual = natural_residual(m, q, &restarted);
-                if restarted_residual < residual {
-                    (z, residual) = (restarted, restarted_residual);
-                }
-                vars.copy_from_slice(&restart.basis.vars);
-            }
-        }
-        if residual <= tolerance {
-            report.residual = residual;
-            report.near_solution = end != PathEnd::Solved;
-            return Ok((DVector::from_vec(z), report));
-        }
-        match end {
-            PathEnd::Solved => {
-                if best.as_ref().is_none_or(|(_, r)| residual < *r) {
-                    best = Some((DVector::from_vec(z), residual));
+        let q_scaled = scaled_q(scaling);
+        let outcome =
+            attempt(m, q, &cols, &q_scaled, scaling, covering, scaled, path_options, tolerance, &mut report);
+        match outcome {
+            Attempt::Solved(solution) => return Ok(solution),
+            Attempt::Inaccurate(z, residual, basis) => {
+                if best.as_ref().is_none_or(|(_, r, _)| residual < *r) {
+                    best = Some((z, residual, basis));
                 }
             }
-            PathEnd::Ray { entering } => {
-                let certificate = ray_certificate(m, q, &path, entering, scaling, &cols.d, covering, scaled);
-                let infeasible = certificate.infeasible;
-                failure =
-                    Some(SolverError::LemkeRay { pivots: report.pivots, certificate: Box::new(certificate) });
+            Attempt::Failed(error, infeasible) => {
+                failure = Some(error);
                 if infeasible {
                     break;
                 }
             }
-            PathEnd::PivotLimit => {
-                failure = Some(SolverError::PivotLimit { pivots: path_options.max_pivots });
-            }
-            PathEnd::Cycle => {
-                failure = Some(SolverError::LemkeCycle { pivots: report.pivots });
-            }
-            PathEnd::Singular(singular) => {
-                failure =
-                    Some(SolverError::LemkeSingularBasis { pivots: report.pivots, ratio: singular.ratio });
-            }
         }
     }
     match (best, failure) {
-        (Some((_, residual)), _) => {
-            Err(SolverError::Inaccurate { solver: "lemke".into(), residual, tolerance })
+        (Some((z, residual, basis)), _) => {
+            report.residual = residual;
+            Ok(Solution { z, report, within_tolerance: false, basis })
         }
         (None, Some(SolverError::LemkeRay { certificate, .. })) => {
             Err(SolverError::LemkeRay { pivots: report.pivots, certificate })
         }
         (None, Some(e)) => Err(e),
         (None, None) => Err(SolverError::PivotLimit { pivots: report.pivots }),
+    }
+}
+
+/// How one path from the identity (and its restarts) ended.
+enum Attempt {
+    /// An answer within the tolerance.
+    Solved(Solution),
+    /// The path's best answer, above the tolerance, with its residual and basis.
+    Inaccurate(DVector<f64>, f64, Option<Vec<usize>>),
+    /// The path failed; whether its ray proves the LCP infeasible.
+    Failed(SolverError, bool),
+}
+
+/// One path of [`solve_sparse`] on `cols` (M scaled by `scaling` with a covering vector), its
+/// answer polished and, if slightly infeasible, restarted from its final basis.
+#[allow(clippy::too_many_arguments)]
+fn attempt(
+    m: &Csc,
+    q: &DVector<f64>,
+    cols: &Columns,
+    q_scaled: &[f64],
+    scaling: &Scaling,
+    covering: Covering,
+    scaled: bool,
+    path_options: PathOptions,
+    tolerance: f64,
+    report: &mut LemkeReport,
+) -> Attempt {
+    let n = q.len();
+    let mut path = Path::new(cols, q_scaled, path_options);
+    let end = path.run();
+    report.attempts += 1;
+    report.pivots += path.pivots;
+    report.lex_solves += path.lex_solves;
+    report.refactorizations += path.basis.refactorizations;
+    report.factorized_size = path.basis.factorized_size();
+    let z_of =
+        |path: &Path| -> Vec<f64> { (0..n).map(|j| (scaling.col[j] * path.value(n + j)).max(0.0)).collect() };
+    // The path's point, z0 dropped: a solution when the path ended there, and possibly one
+    // within the tolerance when it ended otherwise with z0 already near zero.
+    let mut z = z_of(&path);
+    let mut residual = natural_residual(m, q, &z);
+    let mut basis = (end == PathEnd::Solved).then(|| path.basis.vars.clone());
+    if end == PathEnd::Solved {
+        let refactorizations = path.basis.refactorizations;
+        if path.polish(2).is_ok() {
+            report.polished = true;
+            report.refactorizations += path.basis.refactorizations - refactorizations;
+            let polished = z_of(&path);
+            let polished_residual = natural_residual(m, q, &polished);
+            if polished_residual <= residual {
+                (z, residual) = (polished, polished_residual);
+            }
+            // Slightly negative values of the final basis: principal pivots to a clean one.
+            if residual > tolerance {
+                let vars = path.basis.vars.clone();
+                if let Ok(swaps) = path.clean(SWAPS) {
+                    report.swaps += swaps;
+                    let cleaned = z_of(&path);
+                    let cleaned_residual = natural_residual(m, q, &cleaned);
+                    if cleaned_residual < residual {
+                        (z, residual) = (cleaned, cleaned_residual);
+                        basis = Some(path.basis.vars.clone());
+                    } else {
+                        basis = Some(vars);
+                    }
+                }
+            }
+        }
+        // The final basis itself is slightly infeasible: a path restarted from it (and once
+        // more from that one's end), the best point kept.
+        let mut vars = path.basis.vars.clone();
+        for _ in 0..RESTARTS {
+            if residual <= tolerance {
+                break;
+            }
+            let restart_cols = Columns { m: cols.m, d: covering_of_basis(cols, &vars) };
+            let restart_options =
+                PathOptions { max_pivots: path_options.max_pivots.min(n / 2 + 100), ..path_options };
+            let mut restart = Path::new(&restart_cols, q_scaled, restart_options);
+            let restart_end = restart.restart(&vars);
+            report.restarts += 1;
+            report.pivots += restart.pivots;
+            report.lex_solves += restart.lex_solves;
+            report.refactorizations += restart.basis.refactorizations;
+            if restart_end != PathEnd::Solved {
+                break;
+            }
+            let _ = restart.polish(2);
+            let restarted = z_of(&restart);
+            let restarted_residual = natural_residual(m, q, &restarted);
+            if restarted_residual < residual {
+                (z, residual) = (restarted, restarted_residual);
+                basis = Some(restart.basis.vars.clone());
+            }
+            vars.copy_from_slice(&restart.basis.vars);
+        }
+    }
+    if residual <= tolerance {
+        report.residual = residual;
+        report.near_solution = end != PathEnd::Solved;
+        return Attempt::Solved(Solution {
+            z: DVector::from_vec(z),
+            report: report.clone(),
+            within_tolerance: true,
+            basis,
+        });
+    }
+    match end {
+        PathEnd::Solved => Attempt::Inaccurate(DVector::from_vec(z), residual, basis),
+        PathEnd::Ray { entering } => {
+            let certificate = ray_certificate(m, q, &path, entering, scaling, &cols.d, covering, scaled);
+            let infeasible = certificate.infeasible;
+            Attempt::Failed(
+                SolverError::LemkeRay { pivots: report.pivots, certificate: Box::new(certificate) },
+                infeasible,
+            )
+        }
+        PathEnd::PivotLimit => {
+            Attempt::Failed(SolverError::PivotLimit { pivots: path_options.max_pivots }, false)
+        }
+        PathEnd::Cycle => Attempt::Failed(SolverError::LemkeCycle { pivots: report.pivots }, false),
+        PathEnd::Singular(singular) => Attempt::Failed(
+            SolverError::LemkeSingularBasis { pivots: report.pivots, ratio: singular.ratio },
+            false,
+        ),
     }
 }
 
@@ -319,47 +529,4 @@ fn ray_certificate(
     let d: Vec<f64> = d_scaled.iter().zip(&scaling.row).map(|(d, r)| d / r).collect();
     debug_assert_ne!(path.basis.position[2 * n], NONE, "z0 is basic on a secondary ray");
     RayCertificate::check(m, q, &d, start, path.value(2 * n), direction, rate[2 * n], covering.name(), scaled)
-}
-
-/// Lemke's method as a [`ConstraintSolver`] (friction as a pyramid; a cone is approximated by
-/// `facets` directions).
-#[derive(Clone, Debug)]
-pub struct LemkeSolver {
-    /// Pivoting options.
-    pub options: LemkeOptions,
-    /// Pyramid directions used when the problem states a cone.
-    pub facets: usize,
-}
-
-impl Default for LemkeSolver {
-    fn default() -> Self {
-        Self { options: LemkeOptions::default(), facets: 8 }
-    }
-}
-
-impl ConstraintSolver for LemkeSolver {
-    fn name(&self) -> &'static str {
-        "lemke"
-    }
-
-    fn solve(
-        &mut self,
-        problem: &ConstraintProblem,
-        lambda: &mut DVector<f64>,
-    ) -> Result<SolveInfo, SolverError> {
-        check_problem(problem)?;
-        if matches!(problem.friction, FrictionModel::Cone) && self.facets < 3 {
-            return Err(SolverError::InvalidProblem(format!(
-                "a friction cone needs a pyramid of at least 3 facets, Lemke was given {}",
-                self.facets
-            )));
-        }
-        let lcp = sparse_lcp_of(problem, self.facets);
-        let (z, report) = solve_sparse(&lcp.m, &lcp.q, &self.options)?;
-        *lambda = lcp.impulses(&z);
-        let pivots = report.pivots;
-        let note = matches!(problem.friction, FrictionModel::Cone)
-            .then(|| format!("friction cone approximated by a {}-facet pyramid", self.facets));
-        Ok(SolveInfo { iterations: pivots, note, residuals: None })
-    }
 }

@@ -46,7 +46,7 @@ pub(super) struct PathOptions {
 
 /// A pivoting path: its basis, basic values and counters.
 pub(super) struct Path<'a> {
-    cols: &'a Columns,
+    cols: &'a Columns<'a>,
     q: &'a [f64],
     options: PathOptions,
     /// The factorized basis.
@@ -86,7 +86,7 @@ fn key(var: usize) -> u64 {
 
 impl<'a> Path<'a> {
     /// A path for `q` with the columns `cols` (which hold the covering vector).
-    pub fn new(cols: &'a Columns, q: &'a [f64], options: PathOptions) -> Self {
+    pub fn new(cols: &'a Columns<'a>, q: &'a [f64], options: PathOptions) -> Self {
         let n = cols.n();
         let q_max = q.iter().fold(0.0f64, |a, &v| a.max(v.abs()));
         Self {
@@ -376,22 +376,83 @@ impl<'a> Path<'a> {
         }
     }
 
-    /// Refactorizes and recomputes the basic values with `steps` rounds of iterative refinement
-    /// (x ← x + B⁻¹(q − B x), the residual formed from the columns themselves).
-    pub fn polish(&mut self, steps: usize) -> Result<(), Singular> {
-        self.refactor()?;
+    /// Repairs a final complementary basis whose refined values are slightly negative (basic
+    /// variables that should be zero, pushed below it by the rounding of hundreds of degenerate
+    /// pivots through ill-conditioned bases): the most negative basic variable is swapped for
+    /// its complement (a principal pivot, as in Murty's principal pivoting method) and the
+    /// values refined again, at most `swaps` times and never twice for one pair; returns the
+    /// swaps made. Near a solution such a swap moves the values by the size of the negative
+    /// one, so a few swaps leave a basis feasible to the working precision.
+    pub fn clean(&mut self, swaps: usize) -> Result<usize, Singular> {
         let n = self.cols.n();
-        let mut residual = vec![0.0; n];
+        let zero = 1e-15 * self.q.iter().fold(1.0f64, |m, &v| m.max(v.abs()));
+        let mut swapped = Vec::new();
+        for _ in 0..swaps {
+            self.polish(2)?;
+            let negative = (0..n)
+                .filter(|&p| self.x[p] < -zero && !swapped.contains(&(self.basis.vars[p] % n)))
+                .min_by(|&a, &b| self.x[a].total_cmp(&self.x[b]));
+            let Some(p) = negative else { break };
+            let var = self.basis.vars[p];
+            if var == 2 * n {
+                break;
+            }
+            let complement = if var < n { var + n } else { var - n };
+            self.basis.solve_column(self.cols, complement, &mut self.alpha);
+            let a_max = self.alpha.iter().fold(0.0f64, |m, &v| m.max(v.abs()));
+            if self.alpha[p].abs() <= 1e-9 * a_max {
+                break;
+            }
+            let theta = self.x[p] / self.alpha[p];
+            for (x, &a) in self.x.iter_mut().zip(&self.alpha) {
+                *x -= theta * a;
+            }
+            self.x[p] = theta;
+            self.basis.replace(p, complement, &self.alpha);
+            swapped.push(var % n);
+        }
+        self.polish(2)?;
+        Ok(swapped.len())
+    }
+
+    /// Refines the basic values by `steps` rounds of iterative refinement x ← x + B⁻¹(q − B x),
+    /// the residual q − B x accumulated in double-double arithmetic (each product split exactly
+    /// by a fused multiply-add, each sum by TwoSum; Ogita, Rump & Oishi 2005) so that the
+    /// refined x is accurate to the working precision rather than to κ(B) times it (Wilkinson's
+    /// refinement with an extended residual). The basis is refactorized first when it carries
+    /// eta updates (a fresh factorization is the better corrector after many pivots).
+    pub fn polish(&mut self, steps: usize) -> Result<(), Singular> {
+        if self.basis.updates() > 0 {
+            self.refactor()?;
+        }
+        let n = self.cols.n();
+        let (mut high, mut low) = (vec![0.0; n], vec![0.0; n]);
         let mut correction = vec![0.0; n];
         for _ in 0..steps {
-            residual.copy_from_slice(self.q);
+            high.copy_from_slice(self.q);
+            low.fill(0.0);
             for (p, &var) in self.basis.vars.iter().enumerate() {
                 let xp = self.x[p];
                 if xp != 0.0 {
-                    self.cols.for_each(var, |i, v| residual[i] -= v * xp);
+                    self.cols.for_each(var, |i, v| {
+                        // −v x_p = product + error exactly; high + product = sum + rounding.
+                        let product = -v * xp;
+                        let error = (-v).mul_add(xp, -product);
+                        let sum = high[i] + product;
+                        let virtual_product = sum - high[i];
+                        let rounding = (high[i] - (sum - virtual_product)) + (product - virtual_product);
+                        high[i] = sum;
+                        low[i] += rounding + error;
+                    });
                 }
             }
-            self.basis.solve(self.cols, &residual, &mut correction);
+            for (h, l) in high.iter_mut().zip(&low) {
+                *h += l;
+            }
+            if high.iter().all(|&r| r == 0.0) {
+                break;
+            }
+            self.basis.solve(self.cols, &high, &mut correction);
             for (x, c) in self.x.iter_mut().zip(&correction) {
                 *x += c;
             }

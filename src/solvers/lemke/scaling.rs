@@ -9,7 +9,7 @@
 use super::columns::Csc;
 
 /// Row factors D and column factors E (powers of two).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub(super) struct Scaling {
     /// D: w' = D w.
     pub row: Vec<f64>,

@@ -1,0 +1,182 @@
+//! Lemke's method as a [`ConstraintSolver`], with what one solve leaves for the next.
+
+use super::columns::{Columns, Matrix};
+use super::delassus::MatrixKey;
+use super::lcp::{sparse_lcp_of, SparseLcp};
+use super::{solve_from_basis, solve_sparse, Equilibrated, LemkeOptions, LemkeReport};
+use crate::constraints::{ConstraintProblem, FrictionModel};
+use crate::solvers::{check_problem, ConstraintSolver, SolveInfo, SolverError};
+use nalgebra::DVector;
+
+/// Lemke's method as a [`ConstraintSolver`] (friction as a pyramid; a cone is approximated by
+/// `facets` directions).
+#[derive(Clone, Debug)]
+pub struct LemkeSolver {
+    /// Pivoting options.
+    pub options: LemkeOptions,
+    /// Pyramid directions used when the problem states a cone.
+    pub facets: usize,
+    /// What the last solve leaves for the next (its LCP and final basis).
+    pub memory: LemkeMemory,
+}
+
+impl Default for LemkeSolver {
+    fn default() -> Self {
+        Self { options: LemkeOptions::default(), facets: 8, memory: LemkeMemory::default() }
+    }
+}
+
+/// What a [`LemkeSolver`] keeps from its last solve for the next: the LCP (M by sparse
+/// columns, its equilibration, and the key of the problem data M was formed from) and the
+/// complementary basis of the answer.
+///
+/// - A problem with the same key (the same rows and laws, the same R and the same A or W bit
+///   for bit, as a world poses while its bodies rest and it keeps W) poses the same M: only q
+///   is formed anew.
+/// - The last basis is the start of the next solve when the LCP has the same variables (the
+///   same rows, laws and contacts): a resting stack's basis stays feasible as q changes a
+///   little, and is then the answer without a pivot; a slightly infeasible one is repaired by
+///   a few pivots from it ([`super::path::Path::restart`]). A start that fails is dropped for
+///   the paths from the identity, so the answer is the one a cold solve certifies.
+#[derive(Clone, Debug)]
+pub struct LemkeMemory {
+    /// Whether solves start from the last basis and reuse the last M (on by default).
+    pub enabled: bool,
+    key: MatrixKey,
+    lcp: Option<SparseLcp>,
+    /// M's equilibration, once a solve needed it.
+    equilibrated: Option<Equilibrated>,
+    /// The last answer's complementary basis and the laws and contact rows of its problem.
+    basis: Option<Vec<usize>>,
+    shape: (Vec<crate::constraints::RowLaw>, Vec<usize>, usize),
+    /// Facts of the last solve.
+    pub last: LemkeReport,
+    /// Solves whose M was the last solve's (only q formed).
+    pub reused_matrices: usize,
+}
+
+impl Default for LemkeMemory {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            key: MatrixKey::default(),
+            lcp: None,
+            equilibrated: None,
+            basis: None,
+            shape: (Vec::new(), Vec::new(), 0),
+            last: LemkeReport::default(),
+            reused_matrices: 0,
+        }
+    }
+}
+
+impl LemkeMemory {
+    /// A memory that is never used: every solve starts from the identity basis.
+    pub fn off() -> Self {
+        Self { enabled: false, ..Self::default() }
+    }
+
+    /// Whether the basis kept is a start for `problem`'s LCP with `facets`: the same rows, laws
+    /// and contact rows, hence the same LCP variables.
+    fn shape_matches(&self, problem: &ConstraintProblem, facets: usize) -> bool {
+        self.shape.2 == facets
+            && self.shape.0 == problem.laws
+            && self.shape.1.len() == problem.contacts.len()
+            && self.shape.1.iter().zip(&problem.contacts).all(|(&n, c)| n == c.normal)
+    }
+}
+
+impl ConstraintSolver for LemkeSolver {
+    fn name(&self) -> &'static str {
+        "lemke"
+    }
+
+    fn solve(
+        &mut self,
+        problem: &ConstraintProblem,
+        lambda: &mut DVector<f64>,
+    ) -> Result<SolveInfo, SolverError> {
+        check_problem(problem)?;
+        if matches!(problem.friction, FrictionModel::Cone) && self.facets < 3 {
+            return Err(SolverError::InvalidProblem(format!(
+                "a friction cone needs a pyramid of at least 3 facets, Lemke was given {}",
+                self.facets
+            )));
+        }
+        let memory = &mut self.memory;
+        let facets = self.facets;
+        let same_matrix = memory.enabled && memory.lcp.is_some() && memory.key.matches(problem, facets);
+        if same_matrix {
+            memory.reused_matrices += 1;
+            memory.lcp.as_mut().expect("kept with its key").update_q(problem);
+        } else {
+            let lcp = sparse_lcp_of(problem, facets);
+            memory.equilibrated = None;
+            memory.lcp = Some(lcp);
+            if memory.enabled {
+                memory.key.fill(problem, facets);
+            }
+        }
+        let lcp = memory.lcp.as_ref().expect("formed above");
+        // The last basis when the LCP has the same variables, else one read from the warm start.
+        let kept = memory.basis.take().filter(|_| memory.enabled && memory.shape_matches(problem, facets));
+        let start = match kept {
+            Some(basis) => Some(basis),
+            None if memory.enabled && lambda.iter().any(|&l| l != 0.0) => {
+                lcp.basis_of_impulses(problem, facets, lambda)
+            }
+            None => None,
+        };
+        let lcp = memory.lcp.as_mut().expect("formed above");
+        let warm = match start {
+            Some(start) => solve_from_basis(
+                &mut Columns { m: Matrix::Lazy(lcp), d: Vec::new() },
+                &lcp.q,
+                &self.options,
+                &start,
+            ),
+            None => Err(LemkeReport::default()),
+        };
+        let outcome = match warm {
+            Ok(solution) => Ok(solution),
+            Err(report) => {
+                let q = lcp.q.clone();
+                solve_sparse(lcp.form_m(), &q, &self.options, &mut memory.equilibrated, report)
+            }
+        };
+        let solution = match outcome {
+            Ok(solution) => solution,
+            Err(e) => {
+                memory.basis = None;
+                return Err(e);
+            }
+        };
+        let lcp = memory.lcp.as_ref().expect("formed above");
+        *lambda = lcp.impulses(&solution.z);
+        memory.last = solution.report.clone();
+        if memory.enabled {
+            memory.basis = solution.basis;
+            memory.shape.0.clone_from(&problem.laws);
+            memory.shape.1.clear();
+            memory.shape.1.extend(problem.contacts.iter().map(|c| c.normal));
+            memory.shape.2 = facets;
+        } else {
+            memory.lcp = None;
+        }
+        let mut notes = Vec::new();
+        if matches!(problem.friction, FrictionModel::Cone) {
+            notes.push(format!("friction cone approximated by a {}-facet pyramid", self.facets));
+        }
+        if !solution.within_tolerance {
+            // Every path ended on a basis whose values are some 1e-10 below zero (a highly
+            // degenerate vertex, as of a pile of boxes on redundant corners): the best answer is
+            // handed on for the caller to certify by the problem's residuals.
+            notes.push(format!(
+                "LCP residual {:.2e} above Lemke's {:.0e} relative to ‖q‖",
+                solution.report.residual, self.options.tolerance
+            ));
+        }
+        let note = (!notes.is_empty()).then(|| notes.join("; "));
+        Ok(SolveInfo { iterations: solution.report.pivots, note, residuals: None })
+    }
+}
