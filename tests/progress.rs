@@ -17,14 +17,17 @@ fn scene_file(name: &str, text: &str) -> PathBuf {
     path
 }
 
-/// 30 000 boxes on the ground, run for one step: seconds of set-up, a moment of running. Each
-/// test writes its own copy (`name`), as the tests run at the same time.
-fn many_boxes(name: &str) -> PathBuf {
+/// `layers` × 10 000 boxes on the ground, run for one step: a set-up of about 0.15 s per layer
+/// (this machine kind), a moment of running. Each test writes its own copy (`name`), as the
+/// tests run at the same time.
+fn many_boxes(name: &str, layers: usize) -> PathBuf {
     scene_file(
         name,
-        "[world]\nduration = 0.002\n\n[[ground]]\n\n[[body]]\nname = \"box\"\nshape = \"box\"\n\
-         size = [0.1, 0.1, 0.1]\nmass = 1\nposition = [0, 0, 1]\ncount = [100, 100, 3]\n\
-         spacing = [0.3, 0.3, 0.3]\n",
+        &format!(
+            "[world]\nduration = 0.002\n\n[[ground]]\n\n[[body]]\nname = \"box\"\nshape = \"box\"\n\
+             size = [0.1, 0.1, 0.1]\nmass = 1\nposition = [0, 0, 1]\ncount = [100, 100, {layers}]\n\
+             spacing = [0.3, 0.3, 0.3]\n"
+        ),
     )
 }
 
@@ -46,7 +49,7 @@ fn set_up_progress_counts_every_copy_once_in_order() {
 #[test]
 fn a_long_set_up_prints_nothing_when_stderr_is_not_a_terminal() {
     let out = Command::new(env!("CARGO_BIN_EXE_gelenk"))
-        .args(["simulate", many_boxes("boxes30000.toml").to_str().expect("a UTF-8 path")])
+        .args(["simulate", many_boxes("boxes30000.toml", 3).to_str().expect("a UTF-8 path")])
         .output()
         .expect("gelenk runs");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -57,7 +60,9 @@ fn a_long_set_up_prints_nothing_when_stderr_is_not_a_terminal() {
 #[test]
 fn a_long_set_up_shows_its_bar_on_a_terminal() {
     // `script` (util-linux) runs the command on a pseudo-terminal and copies what it printed.
-    let scene = many_boxes("boxes30000_terminal.toml");
+    // 100 000 boxes: the bodies take over a second to build, well past the bar's 0.3 s of quiet
+    // (30 000 are built within it on an idle machine).
+    let scene = many_boxes("boxes100000_terminal.toml", 10);
     let command = format!("{} simulate {}", env!("CARGO_BIN_EXE_gelenk"), scene.display());
     let Ok(out) = Command::new("script").args(["-qec", &command, "/dev/null"]).output() else {
         eprintln!("skipped: no `script` command (util-linux) to give gelenk a terminal");
@@ -66,7 +71,7 @@ fn a_long_set_up_shows_its_bar_on_a_terminal() {
     let shown = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{shown}");
     assert!(shown.contains("building the scene ["), "the set-up bar was drawn:\n{shown}");
-    assert!(shown.contains("/30000 bodies"), "it counts the bodies:\n{shown}");
+    assert!(shown.contains("/100000 bodies"), "it counts the bodies:\n{shown}");
     assert!(shown.contains("100%"), "then the run's bar:\n{shown}");
-    assert!(shown.contains("boxes30000_terminal: 1 steps"), "and the summary:\n{shown}");
+    assert!(shown.contains("boxes100000_terminal: 1 steps"), "and the summary:\n{shown}");
 }
