@@ -17,28 +17,15 @@ Usage:
 """
 import argparse
 import os
-import subprocess
-import sys
 import tempfile
 
-from crowds import HERE, ROOT, PILE_SETTINGS, bench_gelenk, bench_mujoco
+from crowds import ROOT, PILE_SETTINGS, bench_gelenk, bench_mujoco, write_doc, write_pile
 
 DOC = os.path.join(ROOT, "docs", "performance.md")
 PLOT = os.path.join(ROOT, "docs", "crowd_scaling.png")
 BEGIN, END = "<!-- crowd-scaling:begin -->", "<!-- crowd-scaling:end -->"
 COUNTS = [1, 2, 4, 8, 16, 32, 64]
 DTS = [("2 ms", 0.002), ("1/60 s", 1 / 60)]
-
-
-def write_doc(section):
-    text = open(DOC).read()
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        text = head + BEGIN + "\n" + section + END + tail
-    else:
-        text = text.rstrip("\n") + "\n\n" + BEGIN + "\n" + section + END + "\n"
-    open(DOC, "w").write(text)
 
 
 def plot(rows, path):
@@ -84,12 +71,7 @@ def main():
             steps = int(round(args.seconds / dt))
             for n in COUNTS:
                 path = os.path.join(tmp, f"pile{n}.xml")
-                with open(path, "w") as f:
-                    subprocess.run(
-                        [sys.executable, os.path.join(HERE, "ragdoll_mjcf.py"), "--count", str(n), "--dt", repr(dt),
-                         "--cone", "elliptic"],
-                        check=True, stdout=f,
-                    )
+                write_pile(path, n, dt)
                 mujoco_us, unstable, version = bench_mujoco(path, steps)
                 ours = bench_gelenk(args.gelenk, path, steps, PILE_SETTINGS)
                 rows.append({"n": n, "dt": label, "steps": steps, "gelenk": ours["cpu_us_per_step"],
@@ -127,7 +109,7 @@ def main():
         print(section)
         return
     plot(rows, PLOT)
-    write_doc(section)
+    write_doc(section, BEGIN, END)
     print(f"written to {os.path.relpath(DOC)} and {os.path.relpath(PLOT)}")
 
 

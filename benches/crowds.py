@@ -88,15 +88,27 @@ def bench_mujoco(path, steps):
     return elapsed / steps * 1e6, unstable, mujoco.__version__
 
 
-def write_doc(section):
+def write_doc(section, begin=BEGIN, end=END):
+    """Puts `section` between the markers `begin` and `end` of docs/performance.md (appended
+    with them when they are missing); nothing else changes."""
     text = open(DOC).read()
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
-        text = head + BEGIN + "\n" + section + END + tail
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(end, 1)
+        text = head + begin + "\n" + section + end + tail
     else:
-        text = text.rstrip("\n") + "\n\n" + BEGIN + "\n" + section + END + "\n"
+        text = text.rstrip("\n") + "\n\n" + begin + "\n" + section + end + "\n"
     open(DOC, "w").write(text)
+
+
+def write_pile(path, n, dt):
+    """Writes the MJCF pile of `n` ragdolls at time step `dt` (s), elliptic cones, to `path`."""
+    with open(path, "w") as f:
+        subprocess.run(
+            [sys.executable, os.path.join(HERE, "ragdoll_mjcf.py"), "--count", str(n), "--dt", repr(dt),
+             "--cone", "elliptic"],
+            check=True, stdout=f,
+        )
 
 
 def main():
@@ -149,12 +161,7 @@ def main():
             steps = int(round(seconds / dt))
             for n in counts:
                 path = os.path.join(tmp, f"pile{n}.xml")
-                with open(path, "w") as f:
-                    subprocess.run(
-                        [sys.executable, os.path.join(HERE, "ragdoll_mjcf.py"), "--count", str(n), "--dt", repr(dt),
-                         "--cone", "elliptic"],
-                        check=True, stdout=f,
-                    )
+                write_pile(path, n, dt)
                 mujoco_us, unstable, version = bench_mujoco(path, steps)
                 soft = bench_gelenk(args.gelenk, path, steps, PILE_SETTINGS)
                 s = soft["cpu_us_per_step"]
