@@ -124,14 +124,9 @@ impl ProjectionBuffers {
         data: &Data,
         closures: impl Iterator<Item = &'a LoopClosure>,
     ) -> f64 {
-        self.builder.clear();
-        for c in closures {
-            // erp = 1 and h = 1: the target is exactly −e for each row.
-            let unit = LoopClosure { erp: 1.0, ..*c };
-            add_loop_closure_rows(&mut self.builder, model, data, 0, &unit, 0, 1.0);
-        }
+        let error = self.errors(model, data, closures);
         factor_gram(&self.builder, model, data, &mut self.minv_jt, &mut self.gram);
-        (0..self.builder.len()).map(|i| self.builder.target(i).abs()).fold(0.0, f64::max)
+        error
     }
 
     /// Solves the Gram system for the right-hand side in `mu` and writes −M⁻¹Jᵀμ into `delta`.
@@ -231,6 +226,7 @@ impl ProjectionBuffers {
     ) -> f64 {
         self.builder.clear();
         for c in closures {
+            // erp = 1 and h = 1: the target is exactly −e for each row.
             let unit = LoopClosure { erp: 1.0, ..*c };
             add_loop_closure_rows(&mut self.builder, model, data, 0, &unit, 0, 1.0);
         }
