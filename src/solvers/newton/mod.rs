@@ -208,7 +208,7 @@ impl ConstraintSolver for NewtonSolver {
             ws.lambda_vec = DVector::zeros(n);
         }
         // A warm start already within the goal is the answer.
-        let (residual, report) = certify(problem, w_rows, own_rows, ws, lambda.as_slice());
+        let (residual, report) = certify(problem, w_rows, own_rows, ws, lambda.as_slice(), Sum::Compute);
         if residual <= goal {
             return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
         }
@@ -227,7 +227,7 @@ impl ConstraintSolver for NewtonSolver {
             }
             iterations += newton(w_rows, ws, goal, self.max_iterations.saturating_sub(iterations))?;
             let answer = std::mem::take(&mut ws.lambda);
-            let (residual, report) = certify(problem, w_rows, own_rows, ws, &answer);
+            let (residual, report) = certify(problem, w_rows, own_rows, ws, &answer, Sum::Known);
             ws.lambda = answer;
             best_is_last = residual < best.0;
             if best_is_last {
@@ -250,7 +250,7 @@ impl ConstraintSolver for NewtonSolver {
         if !best_is_last {
             // The problem keeps the Wᵀλ of the last answer certified: make it the best one's.
             let answer = std::mem::take(&mut ws.best);
-            certify(problem, w_rows, own_rows, ws, &answer);
+            certify(problem, w_rows, own_rows, ws, &answer, Sum::Compute);
             ws.best = answer;
         }
         lambda.as_mut_slice().copy_from_slice(&ws.best);
@@ -323,26 +323,37 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
     for g in 0..ws.groups.len() {
         let (first, count) = ws.groups[g].rows();
         let start = ws.columns.len();
+        // The rows of a contact usually share their runs (disjoint, most often increasing):
+        // then the first row's columns are the group's, sorted already.
+        let runs = |i: usize| w.row_spans(i).map(|(col, wi)| (col, wi.len()));
+        let shared = (first + 1..first + count).all(|i| runs(i).eq(runs(first)));
         for i in first..first + count {
-            for (col, wi) in w.row_spans(i) {
-                ws.columns.extend(col..col + wi.len());
+            if i == first || !shared {
+                for (col, wi) in w.row_spans(i) {
+                    ws.columns.extend(col..col + wi.len());
+                }
             }
-            let blocks = w.row_blocks(i);
-            for (k, &a) in blocks.iter().enumerate() {
-                for &b in &blocks[k + 1..] {
-                    ws.pairs.push((a.min(b), a.max(b)));
+            if i == first || w.row_blocks(i) != w.row_blocks(first) {
+                let blocks = w.row_blocks(i);
+                for (k, &a) in blocks.iter().enumerate() {
+                    for &b in &blocks[k + 1..] {
+                        ws.pairs.push((a.min(b), a.max(b)));
+                    }
                 }
             }
         }
-        ws.columns[start..].sort_unstable();
-        let mut write = start;
-        for read in start..ws.columns.len() {
-            if write == start || ws.columns[read] != ws.columns[write - 1] {
-                ws.columns[write] = ws.columns[read];
-                write += 1;
+        if !shared || ws.columns[start..].windows(2).any(|p| p[0] >= p[1]) {
+            ws.columns[start..].sort_unstable();
+            let mut write = start;
+            for read in start..ws.columns.len() {
+                if write == start || ws.columns[read] != ws.columns[write - 1] {
+                    ws.columns[write] = ws.columns[read];
+                    write += 1;
+                }
             }
+            ws.columns.truncate(write);
         }
-        ws.columns.truncate(write);
+        let write = ws.columns.len();
         ws.column_start.push(write);
         let cols = write - start;
         ws.local_start.push(ws.local_w.len());
@@ -390,6 +401,13 @@ fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
     ws.prox.extend((0..n).map(|i| ws.e[i] - problem.regularization[i]));
 }
 
+/// Whether `ws.sum` already holds Wᵀλ of the answer being certified.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Sum {
+    Compute,
+    Known,
+}
+
 /// Row velocities w = (A + R) λ + b of `lambda` into `ws.w`, and the convex residual and the
 /// report. With the problem's own W, Wᵀλ is kept with the problem for the velocity update.
 fn certify(
@@ -398,12 +416,15 @@ fn certify(
     own_rows: bool,
     ws: &mut Workspace,
     lambda: &[f64],
+    sum: Sum,
 ) -> (f64, Residuals) {
     ws.lambda_vec.as_mut_slice().copy_from_slice(lambda);
     if own_rows {
         problem.velocities(&ws.lambda_vec, &mut ws.w);
     } else {
-        rows::transpose_product(w_rows, lambda, &mut ws.sum);
+        if sum == Sum::Compute {
+            rows::transpose_product(w_rows, lambda, &mut ws.sum);
+        }
         rows::product(w_rows, &ws.sum, problem.bias.as_slice(), ws.w.as_mut_slice());
         for ((w, r), l) in ws.w.iter_mut().zip(problem.regularization.iter()).zip(lambda) {
             *w += r * l;
@@ -416,13 +437,15 @@ fn certify(
 
 /// Newton iterations on the round's problem (`ws.c`, `ws.e`) from `ws.x`, until the gradient can
 /// change no row velocity by more than a tenth of `goal`, no step moves x, or `budget`
-/// iterations are done; `ws.lambda` is left at λ(x). Returns the iterations done.
+/// iterations are done; `ws.lambda` is left at λ(x) and `ws.sum` at Wᵀλ. Returns the
+/// iterations done.
 fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Result<usize, SolverError> {
     let largest_row = ws.diagonal.iter().copied().fold(0.0, f64::max).sqrt();
     let mut done = 0;
+    rows::product(w, &ws.x, &ws.c, &mut ws.y);
+    evaluate(ws);
     loop {
-        rows::product(w, &ws.x, &ws.c, &mut ws.y);
-        evaluate(ws);
+        // y and λ(y) are at x: from the line above, or from the line search's last trial.
         rows::transpose_product(w, &ws.lambda, &mut ws.sum);
         let mut norm = 0.0;
         for k in 0..ws.x.len() {
@@ -453,6 +476,7 @@ fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Resu
             // No progress left at this precision: the answer stands.
             rows::product(w, &ws.x, &ws.c, &mut ws.y);
             evaluate(ws);
+            rows::transpose_product(w, &ws.lambda, &mut ws.sum);
             return Ok(done);
         }
     }
