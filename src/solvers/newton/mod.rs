@@ -177,11 +177,26 @@ impl ConstraintSolver for NewtonSolver {
         }
         let goal = self.residual_goal.unwrap_or(1e-9);
         let own_rows = !rows::has_rows(problem);
+        let nv = if own_rows { n } else { problem.sparsity.nv };
+        let ws = &mut self.workspace;
+        for v in [&mut ws.x, &mut ws.gradient, &mut ws.direction, &mut ws.sum] {
+            v.clear();
+            v.resize(nv, 0.0);
+        }
+        if ws.w.len() != n {
+            ws.w = DVector::zeros(n);
+            ws.lambda_vec = DVector::zeros(n);
+        }
+        // A warm start already within the goal is the answer (checked before any set-up: a
+        // resting pile's steps end here).
+        let (residual, report) = certify(problem, &problem.sparsity, own_rows, ws, lambda.as_slice(), Sum::Compute);
+        if residual <= goal {
+            return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
+        }
         if own_rows {
             rows::dense_factor(problem, &mut self.own_w)?;
         }
         let w_rows: &RowSparsity = if own_rows { &self.own_w } else { &problem.sparsity };
-        let ws = &mut self.workspace;
         setup_groups(problem, w_rows, ws)?;
         set_metric(problem, ws, self.epsilon);
         ws.hessian.prepare(&w_rows.blocks, &ws.pairs);
@@ -197,20 +212,6 @@ impl ConstraintSolver for NewtonSolver {
         ] {
             v.clear();
             v.resize(n, 0.0);
-        }
-        let nv = w_rows.nv;
-        for v in [&mut ws.x, &mut ws.gradient, &mut ws.direction, &mut ws.sum] {
-            v.clear();
-            v.resize(nv, 0.0);
-        }
-        if ws.w.len() != n {
-            ws.w = DVector::zeros(n);
-            ws.lambda_vec = DVector::zeros(n);
-        }
-        // A warm start already within the goal is the answer.
-        let (residual, report) = certify(problem, w_rows, own_rows, ws, lambda.as_slice(), Sum::Compute);
-        if residual <= goal {
-            return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
         }
         ws.centre.copy_from_slice(lambda.as_slice());
         rows::transpose_product(w_rows, &ws.centre, &mut ws.x);
