@@ -189,7 +189,8 @@ impl ConstraintSolver for NewtonSolver {
         }
         // A warm start already within the goal is the answer (checked before any set-up: a
         // resting pile's steps end here).
-        let (residual, report) = certify(problem, &problem.sparsity, own_rows, ws, lambda.as_slice(), Sum::Compute);
+        let (residual, report) =
+            certify(problem, &problem.sparsity, own_rows, ws, lambda.as_slice(), Sum::Compute);
         if residual <= goal {
             return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
         }
