@@ -235,24 +235,29 @@ impl Hessian {
         }
     }
 
-    /// Adds the symmetric `local` (`columns.len()`² entries, column-major) at the rows and
-    /// columns `columns` (increasing).
-    pub(super) fn add(&mut self, columns: &[usize], local: &[f64]) {
+    /// Adds the lower triangle of the symmetric `leftᵀ right` (both `count` × `columns.len()`,
+    /// row-major) at the rows and columns `columns` (increasing): a group's `W_gᵀ (G W_g)`,
+    /// entry by entry into the panels, without forming it.
+    pub(super) fn add_gram(&mut self, columns: &[usize], left: &[f64], right: &[f64], count: usize) {
         let m = columns.len();
         for b in 0..m {
             let j = columns[b];
-            // Entries of one block in column j are consecutive rows of one panel column, or
-            // one row across consecutive panel columns: find the first once per run.
+            let block_of_j = self.block_of_col[j];
+            // Entries of one block in column j are rows of one panel column, or one row across
+            // panel columns: find the first once per run.
             let mut a = b;
             while a < m {
                 let first = columns[a];
                 let block = self.block_of_col[first];
                 let start = self.position(first, j);
-                let transposed =
-                    block != self.block_of_col[j] && self.rank[block] < self.rank[self.block_of_col[j]];
+                let transposed = block != block_of_j && self.rank[block] < self.rank[block_of_j];
                 let stride = if transposed { self.height[block] } else { 1 };
                 while a < m && self.block_of_col[columns[a]] == block {
-                    self.values[start + (columns[a] - first) * stride] += local[b * m + a];
+                    let mut sum = 0.0;
+                    for r in 0..count {
+                        sum += left[r * m + a] * right[r * m + b];
+                    }
+                    self.values[start + (columns[a] - first) * stride] += sum;
                     a += 1;
                 }
             }
@@ -427,12 +432,13 @@ mod tests {
     /// Adds a symmetric positive semi-definite local block on `columns` to `h` and to `dense`.
     fn add_both(h: &mut Hessian, dense: &mut nalgebra::DMatrix<f64>, columns: &[usize], seed: f64) {
         let m = columns.len();
-        let v: Vec<f64> = (0..m).map(|k| seed + 0.5 * k as f64).collect();
-        let local: Vec<f64> = (0..m * m).map(|e| v[e / m] * v[e % m]).collect();
-        h.add(columns, &local);
+        // Rank two: vᵀ v + uᵀ u, as a group of two rows.
+        let v: Vec<f64> =
+            (0..m).map(|k| seed + 0.5 * k as f64).chain((0..m).map(|k| (seed * k as f64).cos())).collect();
+        h.add_gram(columns, &v, &v, 2);
         for a in 0..m {
             for b in 0..m {
-                dense[(columns[a], columns[b])] += local[b * m + a];
+                dense[(columns[a], columns[b])] += v[a] * v[b] + v[m + a] * v[m + b];
             }
         }
     }
@@ -519,7 +525,7 @@ mod tests {
         let mut h = Hessian::default();
         h.prepare(&[(0, 2)], &[]);
         h.reset();
-        h.add(&[1], &[f64::NAN]);
+        h.add_gram(&[1], &[f64::NAN], &[1.0], 1);
         assert!(h.factor().is_err());
     }
 }

@@ -137,9 +137,8 @@ struct Workspace {
     gradient: Vec<f64>,
     direction: Vec<f64>,
     sum: Vec<f64>,
-    /// Dense local products G W_g and H_g.
+    /// The dense local product G W_g.
     gw: Vec<f64>,
-    local_h: Vec<f64>,
     hessian: Hessian,
     anderson: anderson::Anderson,
 }
@@ -512,31 +511,20 @@ fn assemble(ws: &mut Workspace) {
         let m = columns.len();
         let local = &ws.local_w[ws.local_start[g]..ws.local_start[g] + count * m];
         let curvature = &ws.curvature[g];
-        // G W_g (count × m), then H_g = W_gᵀ (G W_g) (m × m, column-major, lower triangle).
+        // G W_g (count × m, row-major), then H += W_gᵀ (G W_g) on the group's columns.
         ws.gw.clear();
         ws.gw.resize(count * m, 0.0);
         for a in 0..count {
             for b in 0..count {
                 let gab = curvature[a * count + b];
                 if gab != 0.0 {
-                    for k in 0..m {
-                        ws.gw[a * m + k] += gab * local[b * m + k];
+                    for (gw, w) in ws.gw[a * m..(a + 1) * m].iter_mut().zip(&local[b * m..(b + 1) * m]) {
+                        *gw += gab * w;
                     }
                 }
             }
         }
-        ws.local_h.clear();
-        ws.local_h.resize(m * m, 0.0);
-        for col in 0..m {
-            for row in col..m {
-                let mut s = 0.0;
-                for a in 0..count {
-                    s += local[a * m + row] * ws.gw[a * m + col];
-                }
-                ws.local_h[col * m + row] = s;
-            }
-        }
-        ws.hessian.add(columns, &ws.local_h);
+        ws.hessian.add_gram(columns, local, &ws.gw, count);
     }
 }
 
