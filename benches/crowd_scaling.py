@@ -12,8 +12,8 @@ constraints, `implicitfast`), elliptic cones in both. Each run starts at the dro
 Not part of CI (needs `pip install mujoco matplotlib` and minutes of CPU).
 
 Usage:
-    cargo build --profile ci
-    python3 benches/crowd_scaling.py [--gelenk target/ci/gelenk] [--seconds 2] [--no-write]
+    cargo build --release
+    python3 benches/crowd_scaling.py [--gelenk target/release/gelenk] [--seconds 2] [--no-write]
 """
 import argparse
 import os
@@ -60,7 +60,7 @@ def plot(rows, path):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--gelenk", default=os.path.join(ROOT, "target", "ci", "gelenk"))
+    parser.add_argument("--gelenk", default=os.path.join(ROOT, "target", "release", "gelenk"))
     parser.add_argument("--seconds", type=float, default=2.0, help="simulated seconds per run, from the drop")
     parser.add_argument("--no-write", action="store_true", help="print the table; write no file")
     args = parser.parse_args()
@@ -83,7 +83,7 @@ def main():
         "### Crowd scaling",
         "",
         f"`{command}`: piles of N ragdolls (`benches/ragdoll_mjcf.py --count N`), {args.seconds:g} s from the "
-        f"drop, CPU µs per step and per ragdoll, gelenk (`{' '.join(PILE_SETTINGS)}`, sleeping off) and "
+        f"drop, CPU µs per step and per ragdoll, gelenk (release build, `{' '.join(PILE_SETTINGS)}`, sleeping off) and "
         f"MuJoCo {version} on the same file in the same run. Plot: [crowd_scaling.png](crowd_scaling.png).",
         "",
         "![CPU time per step per ragdoll against the number of ragdolls](crowd_scaling.png)",

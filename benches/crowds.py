@@ -13,8 +13,8 @@ written in place (between its `crowds:begin` and `crowds:end` markers; nothing e
 Not part of CI (needs `pip install mujoco` and minutes of CPU).
 
 Usage:
-    cargo build --profile ci
-    python3 benches/crowds.py [--gelenk target/ci/gelenk] [--duration 1.5] [--quick] [--no-write]
+    cargo build --release
+    python3 benches/crowds.py [--gelenk target/release/gelenk] [--duration 1.5] [--quick] [--no-write]
 """
 import argparse
 import json
@@ -113,7 +113,7 @@ def write_pile(path, n, dt):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--gelenk", default=os.path.join(ROOT, "target", "ci", "gelenk"))
+    parser.add_argument("--gelenk", default=os.path.join(ROOT, "target", "release", "gelenk"))
     parser.add_argument("--duration", type=float, default=1.5, help="simulated seconds per scene run")
     parser.add_argument("--quick", action="store_true", help="only 1/60 s, N = 4 and 16 (a smoke run)")
     parser.add_argument("--no-write", action="store_true", help="print the section instead of writing it")
@@ -123,7 +123,7 @@ def main():
     lines = [
         "### Crowds: every step answered (each scene's own chain unless flags are shown)",
         "",
-        f"`{command}` (the ci profile's `gelenk`; {args.duration:g} s simulated per run, from the drop).",
+        f"`{command}` (the release build's `gelenk`; {args.duration:g} s simulated per run, from the drop).",
         "",
         "| scene | dt | steps | above tolerance | max residual (m/s) | deepest penetration (mm) "
         "| islands (most, largest rows) | CPU ms per step | solvers |",

@@ -114,14 +114,26 @@ pub fn solve_mass_matrix(model: &Model, data: &Data, x: &mut DVector<f64>) {
 /// [`solve_mass_matrix`] on a slice of length nv (a column of a column-major matrix, say).
 pub fn solve_mass_matrix_slice(model: &Model, data: &Data, x: &mut [f64]) {
     debug_assert_eq!(x.len(), model.nv());
+    solve_mass_matrix_dofs(model, data, x, 0..model.nv());
+}
+
+/// [`solve_mass_matrix_slice`] for an `x` (length nv) that is zero outside `dofs`, a range of
+/// dofs that holds whole subtrees of the root (with every dof, its ancestors and descendants):
+/// M is block-diagonal over those subtrees, so only `x[dofs]` is read and written, in
+/// O(entries of the range's factor) rather than O(entries of the whole factor).
+pub(crate) fn solve_mass_matrix_dofs(
+    model: &Model,
+    data: &Data,
+    x: &mut [f64],
+    dofs: std::ops::Range<usize>,
+) {
     let (paths, path_start, packed) = (&model.dof_path, &model.dof_path_start, &data.factor_packed);
-    let n = model.nv();
     // Row i of L is packed contiguously, its ancestors root first (see factor_mass_matrix).
     let row = |i: usize| {
         let (start, depth) = (path_start[i], path_start[i + 1] - path_start[i]);
         (&paths[start..start + depth], &packed[start + i..=start + i + depth])
     };
-    for i in (0..n).rev() {
+    for i in dofs.clone().rev() {
         let xi = x[i];
         // Rows of a contact or joint Jacobian are zero off the branch they act on.
         if xi == 0.0 {
@@ -132,11 +144,11 @@ pub fn solve_mass_matrix_slice(model: &Model, data: &Data, x: &mut [f64]) {
             x[j] -= l * xi;
         }
     }
-    for (i, xi) in x.iter_mut().enumerate() {
+    for i in dofs.clone() {
         let (path, l) = row(i);
-        *xi /= l[path.len()];
+        x[i] /= l[path.len()];
     }
-    for i in 0..n {
+    for i in dofs {
         let (path, l) = row(i);
         let mut xi = x[i];
         // Nearest ancestor first.

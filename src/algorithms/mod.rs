@@ -19,7 +19,7 @@ pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use factor::{
     factor_mass_matrix, forward_dynamics_crba, mass_matrix_factor, solve_mass_matrix, solve_mass_matrix_slice,
 };
-pub(crate) use factor::{factor_packed_mass_matrix, pack_mass_matrix};
+pub(crate) use factor::{factor_packed_mass_matrix, pack_mass_matrix, solve_mass_matrix_dofs};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
 pub use kinematics::{forward_kinematics, frame_placement};
 pub(crate) use momentum::{has_screw_joints_only, momentum_and_lagrangian_force};

@@ -39,17 +39,22 @@
 //! velocity-dependent terms (the centripetal force of its centre of mass about a ball joint,
 //! the couplings with its parent's motion) stay explicit.
 //!
+//! The bodies of different subtrees of the root (the ragdolls of one MJCF file, say) do not
+//! couple: M̃ is block-diagonal over the subtrees, and the Woodbury system is solved subtree
+//! by subtree, each on its own dofs (a crowd's cost is linear in its size).
+//!
 //! Which bodies: those of free joints, with their inertia about the centre of mass (the couple
 //! of the Newton–Euler equations). The bodies of ball joints keep the explicit couple: inside a
 //! limb the couple about the joint is one part of the coupled chain's velocity product, and
 //! treating it alone implicitly let a powered ragdoll's limits open by 1.15° on landing
 //! (`tests/ragdoll.rs` bounds them by 1°).
 
-use crate::algorithms::solve_mass_matrix_slice;
+use crate::algorithms::{solve_mass_matrix_dofs, solve_mass_matrix_slice};
 use crate::data::Data;
 use crate::math::{Mat3, Vec3};
 use crate::model::{Joint, Model};
 use nalgebra::{DMatrix, DVector};
+use std::ops::Range;
 
 /// A body spins fast enough for its gyroscopic couple to be treated implicitly when it turns
 /// by more than this angle in one step (rad). Below it the explicit couple changes the kinetic
@@ -60,10 +65,11 @@ pub const SPIN_THRESHOLD: f64 = 1e-4;
 #[derive(Clone, Debug)]
 pub(crate) struct Gyroscopic {
     /// Bodies of free joints, with their rotational inertia about the centre of mass in body
-    /// axes.
-    candidates: Vec<(usize, Mat3)>,
-    /// This step's spinning bodies: body, `ω₀` and `L̄` (world axes).
-    spinning: Vec<(usize, Vec3, Vec3)>,
+    /// axes and the dofs of their subtree of the root; in body order, so that the bodies of
+    /// one subtree are consecutive.
+    candidates: Vec<(usize, Mat3, Range<usize>)>,
+    /// This step's spinning bodies: body, `ω₀` and `L̄` (world axes), the dofs of its subtree.
+    spinning: Vec<(usize, Vec3, Vec3, Range<usize>)>,
     /// `M̃⁻¹ J_bᵀ`, three columns per spinning body.
     w: DMatrix<f64>,
     /// `1 + h G C` of the Woodbury identity (3k × 3k), overwritten by its elimination.
@@ -105,9 +111,19 @@ fn add_couple(model: &Model, data: &Data, body: usize, t: &Vec3, out: &mut [f64]
 impl Gyroscopic {
     /// Buffers for `model`: every body of a free joint may spin.
     pub(crate) fn new(model: &Model) -> Self {
-        let candidates: Vec<(usize, Mat3)> = (1..model.nbodies())
+        // Each body's subtree of the root (its ancestor whose parent is the root), and the dofs
+        // of each such subtree (contiguous: bodies are numbered depth-first).
+        let mut top = vec![0usize; model.nbodies()];
+        let mut dofs = vec![usize::MAX..0; model.nbodies()];
+        for i in 1..model.nbodies() {
+            top[i] = if model.parent(i) == 0 { i } else { top[model.parent(i)] };
+            let own = model.idx_v(i)..model.idx_v(i) + model.joint(i).nv();
+            let range = &mut dofs[top[i]];
+            *range = range.start.min(own.start)..range.end.max(own.end);
+        }
+        let candidates: Vec<(usize, Mat3, Range<usize>)> = (1..model.nbodies())
             .filter_map(|i| match model.joint(i) {
-                Joint::Free => Some((i, model.inertia(i).inertia_com())),
+                Joint::Free => Some((i, model.inertia(i).inertia_com(), dofs[top[i]].clone())),
                 _ => None,
             })
             .collect();
@@ -125,7 +141,9 @@ impl Gyroscopic {
     /// Whether some body turns by more than [`SPIN_THRESHOLD`] in a step of `h` at velocity `v`
     /// (`data.j_world` current): then the free motion needs the factor of M̃.
     pub(crate) fn any_spinning(&self, model: &Model, data: &Data, v: &[f64], h: f64) -> bool {
-        self.candidates.iter().any(|&(b, _)| h * angular_velocity(model, data, b, v).norm() > SPIN_THRESHOLD)
+        self.candidates
+            .iter()
+            .any(|&(b, _, _)| h * angular_velocity(model, data, b, v).norm() > SPIN_THRESHOLD)
     }
 
     /// Replaces the explicit gyroscopic couple of every spinning body in `v_free` (the explicit
@@ -143,7 +161,8 @@ impl Gyroscopic {
         // correction of the explicit couple −ω₀ × I ω₀ to −ω₀ × L̄ as generalized forces.
         self.spinning.clear();
         self.column.fill(0.0);
-        for &(b, inertia_body) in &self.candidates {
+        for (b, inertia_body, dofs) in &self.candidates {
+            let b = *b;
             let omega0 = angular_velocity(model, data, b, v.as_slice());
             if h * omega0.norm() <= SPIN_THRESHOLD {
                 continue;
@@ -154,7 +173,7 @@ impl Gyroscopic {
             let momentum = inertia * ((omega0 + omega_free) * 0.5);
             let correction = -omega0.cross(&(momentum - inertia * omega0));
             add_couple(model, data, b, &correction, self.column.as_mut_slice());
-            self.spinning.push((b, omega0, momentum));
+            self.spinning.push((b, omega0, momentum, dofs.clone()));
         }
         if self.spinning.is_empty() {
             return;
@@ -162,20 +181,47 @@ impl Gyroscopic {
         // z = Δv of the explicit step with the corrected couple: v_free − v + h M̃⁻¹ Σ J_bᵀ t_b.
         solve_mass_matrix_slice(model, data, self.column.as_mut_slice());
         v_free.axpy(h, &self.column, 1.0);
-        // W = M̃⁻¹ U with U = [J_bᵀ …], three columns per spinning body.
-        let k = 3 * self.spinning.len();
-        for (p, &(b, _, _)) in self.spinning.iter().enumerate() {
+        // The spinning bodies of one subtree of the root at a time (consecutive in the list).
+        let mut first = 0;
+        while first < self.spinning.len() {
+            let dofs = self.spinning[first].3.clone();
+            let mut end = first + 1;
+            while end < self.spinning.len() && self.spinning[end].3 == dofs {
+                end += 1;
+            }
+            self.apply_subtree(model, data, v, v_free, h, first..end, dofs);
+            first = end;
+        }
+    }
+
+    /// The Woodbury correction of the spinning bodies `group` (indices into `spinning`), which
+    /// share the subtree of the root whose dofs are `dofs`: `v_free[dofs]` moves by −W y.
+    #[allow(clippy::too_many_arguments)]
+    fn apply_subtree(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        v: &DVector<f64>,
+        v_free: &mut DVector<f64>,
+        h: f64,
+        group: Range<usize>,
+        dofs: Range<usize>,
+    ) {
+        let spinning = &self.spinning[group];
+        // W = M̃⁻¹ U with U = [J_bᵀ …], three columns per spinning body, zero off `dofs`.
+        let k = 3 * spinning.len();
+        for (p, &(b, _, _, _)) in spinning.iter().enumerate() {
             for axis in 0..3 {
                 let mut column = self.w.column_mut(3 * p + axis);
-                column.fill(0.0);
+                column.rows_range_mut(dofs.clone()).fill(0.0);
                 let t = Vec3::ith(axis, 1.0);
                 add_couple(model, data, b, &t, column.as_mut_slice());
-                solve_mass_matrix_slice(model, data, column.as_mut_slice());
+                solve_mass_matrix_dofs(model, data, column.as_mut_slice(), dofs.clone());
             }
         }
         // (M̃ + h U G Uᵀ) Δv = b with G = blockdiag(−½ [L̄_b]×): Δv = z − W y, where
         // (1 + h G Uᵀ W) y = h G Uᵀ z.
-        for (p, &(b, _, momentum)) in self.spinning.iter().enumerate() {
+        for (p, &(b, _, momentum, _)) in spinning.iter().enumerate() {
             let g = crate::math::skew(&momentum) * (-0.5 * h);
             // Uᵀ z: Δω of body b under z = v_free − v.
             let z_omega = angular_velocity(model, data, b, v_free.as_slice())
@@ -184,7 +230,7 @@ impl Gyroscopic {
             for a in 0..3 {
                 self.y[3 * p + a] = rhs[a];
             }
-            for (q, _) in self.spinning.iter().enumerate() {
+            for q in 0..spinning.len() {
                 for col in 0..3 {
                     let wq = self.w.column(3 * q + col);
                     let c = angular_velocity(model, data, b, wq.as_slice());
@@ -198,7 +244,8 @@ impl Gyroscopic {
         }
         solve_dense_in_place(&mut self.system, k, &mut self.y);
         for (j, yj) in self.y.iter().take(k).enumerate() {
-            v_free.axpy(-yj, &self.w.column(j), 1.0);
+            let column = self.w.column(j);
+            v_free.rows_range_mut(dofs.clone()).axpy(-yj, &column.rows_range(dofs.clone()), 1.0);
         }
     }
 }

@@ -1,56 +1,47 @@
-//! The Newton solver's Hessian `H = I + Wᵀ G W` (nv × nv, symmetric positive definite) as a
-//! sparse matrix and its Cholesky factor (faer's supernodal or simplicial LLᵀ with an AMD
-//! ordering).
+//! The Newton solver's Hessian `H = I + Wᵀ G W` (nv × nv, symmetric positive definite) and its
+//! Cholesky factor `H = L Lᵀ`, sparse by blocks.
 //!
-//! Its pattern is block-structured: the velocity blocks are the multibodies, a block's own
-//! entries are stored dense (its rows' paths overlap near the root), and two blocks are
-//! coupled where some group of rows touches both (a contact between two multibodies). The
-//! pattern, and with it the symbolic factorization, is kept while the set of coupled block
-//! pairs stays the same: a resting pile factors with the symbolic analysis of an earlier step.
+//! The velocity blocks are the multibodies. A block's own entries are dense (its rows' paths
+//! overlap near the root, and a floating base couples them all), and two blocks are coupled
+//! where some group of rows touches both (a contact between two multibodies). The factor keeps
+//! that structure: the blocks are eliminated in an approximate-minimum-degree order of the
+//! block graph (faer's AMD), and L is stored as one dense panel per block, column-major: the
+//! block's diagonal block over the later blocks its columns reach (coupled ones and fill).
+//! Every operation of the factorization and of the solves is then a short dense loop over
+//! contiguous panel columns, with no permutation of H or of the right-hand side (a panel's rows
+//! are blocks' own columns). This is a supernodal Cholesky whose supernodes are the multibodies;
+//! a general sparse code (faer's simplicial or supernodal LLᵀ) spends most of its time on the
+//! scalar pattern and the permutations on these small, dense blocks.
 //!
-//! H is assembled in its block order and copied into the fill-reducing (AMD) order once per
-//! factorization through a map made with the pattern (one pass over the entries), and factored
-//! there without a permutation of faer's own: its general permutation of a symmetric matrix,
-//! done at every numeric factorization, cost more than the copy.
+//! The order and the panels are kept while the set of coupled block pairs stays the same: a
+//! resting pile factors with the analysis of an earlier step.
 
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering,
-};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::amd;
+use faer::sparse::SymbolicSparseColMatRef;
 
-/// The lower triangle of H in compressed columns, and its factor.
+/// The Hessian's panels (H's lower triangle by blocks until [`Hessian::factor`], then L's).
 #[derive(Default)]
 pub(super) struct Hessian {
+    /// Whether a pattern has been made.
+    prepared: bool,
     /// Velocity blocks (first column, width) the pattern was made for.
     blocks: Vec<(usize, usize)>,
     /// Coupled block pairs (lower block, upper block), sorted: the pattern's key.
     pairs: Vec<(usize, usize)>,
-    /// Per block, where its coupled later blocks start in `links`.
-    link_start: Vec<usize>,
-    /// (later block, offset of its rows in each column of the block below the block's own
-    /// rows), by block.
-    links: Vec<(usize, usize)>,
-    block_of_col: Vec<usize>,
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    values: Vec<f64>,
-    /// Per column, its index in the AMD order; the lower triangle of H in that order (pattern
-    /// and values), and where each entry of `values` goes in it.
+    /// Blocks in elimination order, and each block's place in that order.
     order: Vec<usize>,
-    ordered: Option<SymbolicSparseColMat<usize>>,
-    ordered_values: Vec<f64>,
-    ordered_position: Vec<usize>,
-    /// A right-hand side in the AMD order.
-    ordered_rhs: Vec<f64>,
-    /// Whether `ordered` holds the lower triangle (else the upper).
-    lower: bool,
-    symbolic: Option<SymbolicCholesky<usize>>,
-    factor: Vec<f64>,
-    memory: Option<MemBuffer>,
-    memory_bytes: usize,
+    rank: Vec<usize>,
+    /// Per block, its panel's later blocks (increasing in elimination order) with the panel row
+    /// where each starts: `below[below_start[b]..below_start[b + 1]]`.
+    below_start: Vec<usize>,
+    below: Vec<(usize, usize)>,
+    /// Per block, where its panel starts in `values` (panels are laid out in elimination order)
+    /// and the panel's height (its own width plus the widths of the blocks below).
+    panel_start: Vec<usize>,
+    height: Vec<usize>,
+    block_of_col: Vec<usize>,
+    values: Vec<f64>,
     /// Symbolic analyses done (patterns made).
     pub(super) analyses: usize,
 }
@@ -63,246 +54,412 @@ impl Hessian {
     /// Makes the pattern for `blocks` and the coupled `pairs` (sorted, lower block first) unless
     /// it is the one in use.
     pub(super) fn prepare(&mut self, blocks: &[(usize, usize)], pairs: &[(usize, usize)]) {
-        if self.symbolic.is_some() && self.blocks == blocks && self.pairs == pairs {
+        if self.prepared && self.blocks == blocks && self.pairs == pairs {
             return;
         }
+        self.prepared = true;
         self.analyses += 1;
         self.blocks.clear();
         self.blocks.extend_from_slice(blocks);
         self.pairs.clear();
         self.pairs.extend_from_slice(pairs);
+        let nb = blocks.len();
         let nv = blocks.last().map_or(0, |&(col, width)| col + width);
         self.block_of_col.clear();
         self.block_of_col.resize(nv, usize::MAX);
         for (b, &(col, width)) in blocks.iter().enumerate() {
             self.block_of_col[col..col + width].fill(b);
         }
-        self.link_start.clear();
-        self.links.clear();
-        let mut p = 0;
-        for b in 0..blocks.len() {
-            self.link_start.push(self.links.len());
-            let mut offset = 0;
-            while p < pairs.len() && pairs[p].0 == b {
-                let later = pairs[p].1;
-                self.links.push((later, offset));
-                offset += blocks[later].1;
-                p += 1;
-            }
-        }
-        self.link_start.push(self.links.len());
-        self.col_ptr.clear();
-        self.row_idx.clear();
-        self.col_ptr.push(0);
-        for j in 0..nv {
-            let b = self.block_of_col[j];
-            let (col, width) = blocks[b];
-            self.row_idx.extend(j..col + width);
-            for &(later, _) in &self.links[self.link_start[b]..self.link_start[b + 1]] {
-                let (c, w) = blocks[later];
-                self.row_idx.extend(c..c + w);
-            }
-            self.col_ptr.push(self.row_idx.len());
+        self.order_blocks();
+        self.analyse_fill();
+        let mut start = 0;
+        self.panel_start.clear();
+        self.panel_start.resize(nb, 0);
+        for &b in &self.order {
+            self.panel_start[b] = start;
+            start += self.height[b] * blocks[b].1;
         }
         self.values.clear();
-        self.values.resize(self.row_idx.len(), 0.0);
-        let pattern = SymbolicSparseColMatRef::new_checked(nv, nv, &self.col_ptr, None, &self.row_idx);
-        let amd =
-            factorize_symbolic_cholesky(pattern, Side::Lower, SymmetricOrdering::Amd, Default::default())
-                .expect("symbolic Cholesky of a valid pattern");
+        self.values.resize(start, 0.0);
+    }
+
+    /// `order` and `rank`: an approximate minimum degree order of the block graph (blocks
+    /// coupled by a pair are neighbours).
+    fn order_blocks(&mut self) {
+        let nb = self.blocks.len();
         self.order.clear();
-        match amd.perm() {
-            Some(perm) => self.order.extend_from_slice(perm.arrays().1),
-            None => self.order.extend(0..nv),
+        self.order.extend(0..nb);
+        // The upper triangle of the block graph's pattern, column by column, rows increasing
+        // (pairs are sorted by lower block, so a counting pass by upper block keeps them so).
+        let mut col_ptr = vec![0usize; nb + 1];
+        for &(a, b) in &self.pairs {
+            if a != b {
+                col_ptr[b + 1] += 1;
+            }
         }
-        // One triangle of H in the new order, columns sorted, rows increasing in each: the
-        // upper for the symbolic analysis (which, without an ordering of its own, reads the
-        // upper triangle) and the simplicial factorization, the lower for the supernodal one
-        // (the triangle each reads without a transposed copy).
-        let mut entries: Vec<(usize, usize, usize)> = Vec::with_capacity(self.row_idx.len());
-        let triangle = |entries: &mut Vec<(usize, usize, usize)>, upper: bool| {
-            entries.clear();
-            for j in 0..nv {
-                for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                    let (a, b) = (self.order[self.row_idx[p]], self.order[j]);
-                    let (row, col) = if upper { (a.min(b), a.max(b)) } else { (a.max(b), a.min(b)) };
-                    entries.push((col, row, p));
+        for k in 0..nb {
+            col_ptr[k + 1] += col_ptr[k] + 1;
+        }
+        let mut row_idx = vec![0usize; col_ptr[nb]];
+        let mut fill = col_ptr.clone();
+        for &(a, b) in &self.pairs {
+            if a != b {
+                row_idx[fill[b]] = a;
+                fill[b] += 1;
+            }
+        }
+        for k in 0..nb {
+            row_idx[fill[k]] = k;
+        }
+        if nb > 1 {
+            let pattern = SymbolicSparseColMatRef::new_checked(nb, nb, &col_ptr, None, &row_idx);
+            let mut perm = vec![0usize; nb];
+            let mut perm_inv = vec![0usize; nb];
+            let mut memory = MemBuffer::new(amd::order_scratch::<usize>(nb, row_idx.len()));
+            let stack = MemStack::new(&mut memory);
+            // AMD fails only on index overflow; the identity order is then still a valid one.
+            if amd::order(&mut perm, &mut perm_inv, pattern, amd::Control::default(), stack).is_ok() {
+                self.order.copy_from_slice(&perm);
+            }
+        }
+        self.rank.clear();
+        self.rank.resize(nb, 0);
+        for (k, &b) in self.order.iter().enumerate() {
+            self.rank[b] = k;
+        }
+    }
+
+    /// `below`, `below_start` and `height`: each block's later neighbours and the fill its
+    /// elimination creates (the union of its children's, in the block elimination tree).
+    fn analyse_fill(&mut self) {
+        let nb = self.blocks.len();
+        // Each block's later neighbours in the elimination order, as lists.
+        let mut later_start = vec![0usize; nb + 1];
+        for &(a, b) in &self.pairs {
+            if a != b {
+                later_start[if self.rank[a] < self.rank[b] { a } else { b } + 1] += 1;
+            }
+        }
+        for k in 0..nb {
+            later_start[k + 1] += later_start[k];
+        }
+        let mut later = vec![0usize; later_start[nb]];
+        let mut fill = later_start.clone();
+        for &(a, b) in &self.pairs {
+            if a != b {
+                let (first, second) = if self.rank[a] < self.rank[b] { (a, b) } else { (b, a) };
+                later[fill[first]] = second;
+                fill[first] += 1;
+            }
+        }
+        // Children in the elimination tree, as linked lists.
+        let mut first_child = vec![usize::MAX; nb];
+        let mut next_sibling = vec![usize::MAX; nb];
+        let mut mark = vec![usize::MAX; nb];
+        let mut pattern: Vec<usize> = Vec::new();
+        // Patterns are made in elimination order; block b's lives in `lists[list_start[b]..]`.
+        let mut list_start = vec![0usize; nb];
+        let mut list_len = vec![0usize; nb];
+        let mut lists: Vec<usize> = Vec::new();
+        for k in 0..nb {
+            let b = self.order[k];
+            pattern.clear();
+            mark[b] = k;
+            for &r in &later[later_start[b]..later_start[b + 1]] {
+                if mark[r] != k {
+                    mark[r] = k;
+                    pattern.push(r);
                 }
             }
-            // By row, then stably by column: two counting sorts, O(entries + nv).
-            let mut sorted = vec![(0, 0, 0); entries.len()];
-            counting_sort_by(entries, &mut sorted, nv, |e| e.1);
-            counting_sort_by(&sorted, entries, nv, |e| e.0);
-            let mut col_ptr = vec![0usize; nv + 1];
-            let mut row_idx = Vec::with_capacity(entries.len());
-            for &(col, row, _) in entries.iter() {
-                col_ptr[col + 1] += 1;
-                row_idx.push(row);
+            let mut child = first_child[b];
+            while child != usize::MAX {
+                for &r in &lists[list_start[child]..list_start[child] + list_len[child]] {
+                    if mark[r] != k {
+                        mark[r] = k;
+                        pattern.push(r);
+                    }
+                }
+                child = next_sibling[child];
             }
-            for j in 0..nv {
-                col_ptr[j + 1] += col_ptr[j];
+            let rank = &self.rank;
+            pattern.sort_unstable_by_key(|&r| rank[r]);
+            if let Some(&parent) = pattern.first() {
+                next_sibling[b] = first_child[parent];
+                first_child[parent] = b;
             }
-            SymbolicSparseColMat::new_checked(nv, nv, col_ptr, None, row_idx)
-        };
-        let mut ordered = triangle(&mut entries, true);
-        let symbolic = factorize_symbolic_cholesky(
-            ordered.as_ref(),
-            Side::Upper,
-            SymmetricOrdering::Identity,
-            Default::default(),
-        )
-        .expect("symbolic Cholesky of a valid pattern");
-        self.lower = false;
-        if matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)) {
-            ordered = triangle(&mut entries, false);
-            self.lower = true;
+            list_start[b] = lists.len();
+            list_len[b] = pattern.len();
+            lists.extend_from_slice(&pattern);
         }
-        self.ordered_position.clear();
-        self.ordered_position.resize(entries.len(), 0);
-        for (k, &(_, _, p)) in entries.iter().enumerate() {
-            self.ordered_position[p] = k;
+        self.below_start.clear();
+        self.below.clear();
+        self.height.clear();
+        for b in 0..nb {
+            self.below_start.push(self.below.len());
+            let mut row = self.blocks[b].1;
+            for &r in &lists[list_start[b]..list_start[b] + list_len[b]] {
+                self.below.push((r, row));
+                row += self.blocks[r].1;
+            }
+            self.height.push(row);
         }
-        self.ordered = Some(ordered);
-        self.ordered_values.clear();
-        self.ordered_values.resize(entries.len(), 0.0);
-        self.ordered_rhs.clear();
-        self.ordered_rhs.resize(nv, 0.0);
-        self.factor.clear();
-        self.factor.resize(symbolic.len_val(), 0.0);
-        let need = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ]);
-        let bytes = need.unaligned_bytes_required();
-        if self.memory.is_none() || self.memory_bytes < bytes {
-            self.memory = Some(MemBuffer::new(need));
-            self.memory_bytes = bytes;
+        self.below_start.push(self.below.len());
+    }
+
+    /// The panel row where block `r`'s rows start in block `b`'s panel (`r` later than `b`).
+    fn offset(&self, b: usize, r: usize) -> usize {
+        offset_in(&self.below[self.below_start[b]..self.below_start[b + 1]], &self.rank, r)
+    }
+
+    /// Where H's entry (i, j) lives in `values` (i's block not before j's in block index).
+    fn position(&self, i: usize, j: usize) -> usize {
+        let (bi, bj) = (self.block_of_col[i], self.block_of_col[j]);
+        let (ci, cj) = (self.blocks[bi].0, self.blocks[bj].0);
+        if bi == bj {
+            let (hi, lo) = (i.max(j), i.min(j));
+            return self.panel_start[bj] + (lo - cj) * self.height[bj] + (hi - cj);
         }
-        self.symbolic = Some(symbolic);
+        let (col_block, col, row_block, row) =
+            if self.rank[bj] < self.rank[bi] { (bj, j - cj, bi, i - ci) } else { (bi, i - ci, bj, j - cj) };
+        self.panel_start[col_block] + col * self.height[col_block] + self.offset(col_block, row_block) + row
     }
 
     /// Sets H to the identity (the pattern's other entries to 0).
     pub(super) fn reset(&mut self) {
         self.values.fill(0.0);
-        for j in 0..self.block_of_col.len() {
-            self.values[self.col_ptr[j]] = 1.0;
+        for (b, &(_, width)) in self.blocks.iter().enumerate() {
+            let (start, h) = (self.panel_start[b], self.height[b]);
+            for j in 0..width {
+                self.values[start + j * h + j] = 1.0;
+            }
         }
     }
 
-    /// Where H's entry (i, j), i ≥ j, lives in `values`.
-    fn position(&self, i: usize, j: usize) -> usize {
-        let b = self.block_of_col[j];
-        let bi = self.block_of_col[i];
-        let (col, width) = self.blocks[b];
-        if bi == b {
-            return self.col_ptr[j] + (i - j);
-        }
-        let links = &self.links[self.link_start[b]..self.link_start[b + 1]];
-        let offset = links.iter().find(|&&(later, _)| later == bi).map(|&(_, offset)| offset);
-        let offset = offset.expect("a coupled block of the pattern");
-        self.col_ptr[j] + (col + width - j) + offset + (i - self.blocks[bi].0)
-    }
-
-    /// Adds the symmetric `local` (`columns.len()`² entries, column-major) at the rows and
-    /// columns `columns` (increasing).
-    pub(super) fn add(&mut self, columns: &[usize], local: &[f64]) {
+    /// Adds the lower triangle of the symmetric `leftᵀ right` (both `count` × `columns.len()`,
+    /// row-major) at the rows and columns `columns` (increasing): a group's `W_gᵀ (G W_g)`,
+    /// entry by entry into the panels, without forming it.
+    pub(super) fn add_gram(&mut self, columns: &[usize], left: &[f64], right: &[f64], count: usize) {
         let m = columns.len();
         for b in 0..m {
             let j = columns[b];
-            // Entries of one block in column j are consecutive: find the start once per run.
+            let block_of_j = self.block_of_col[j];
+            // Entries of one block in column j are rows of one panel column, or one row across
+            // panel columns: find the first once per run.
             let mut a = b;
             while a < m {
-                let start = self.position(columns[a], j);
-                let block = self.block_of_col[columns[a]];
                 let first = columns[a];
+                let block = self.block_of_col[first];
+                let start = self.position(first, j);
+                let transposed = block != block_of_j && self.rank[block] < self.rank[block_of_j];
+                let stride = if transposed { self.height[block] } else { 1 };
                 while a < m && self.block_of_col[columns[a]] == block {
-                    self.values[start + (columns[a] - first)] += local[b * m + a];
+                    let mut sum = 0.0;
+                    for r in 0..count {
+                        sum += left[r * m + a] * right[r * m + b];
+                    }
+                    self.values[start + (columns[a] - first) * stride] += sum;
                     a += 1;
                 }
             }
         }
     }
 
-    /// out = H x from the stored lower triangle.
+    /// out = H x from the stored lower triangle (before [`Self::factor`]).
     #[cfg(test)]
     pub(super) fn multiply(&self, x: &[f64], out: &mut [f64]) {
         out.fill(0.0);
-        for j in 0..x.len() {
-            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                let i = self.row_idx[p];
-                out[i] += self.values[p] * x[j];
-                if i != j {
-                    out[j] += self.values[p] * x[i];
+        for (b, &(c, width)) in self.blocks.iter().enumerate() {
+            let (start, h) = (self.panel_start[b], self.height[b]);
+            for j in 0..width {
+                let column = &self.values[start + j * h..start + (j + 1) * h];
+                for i in j..width {
+                    out[c + i] += column[i] * x[c + j];
+                    if i != j {
+                        out[c + j] += column[i] * x[c + i];
+                    }
+                }
+                for &(r, row) in &self.below[self.below_start[b]..self.below_start[b + 1]] {
+                    let (cr, wr) = self.blocks[r];
+                    for i in 0..wr {
+                        out[cr + i] += column[row + i] * x[c + j];
+                        out[c + j] += column[row + i] * x[cr + i];
+                    }
                 }
             }
         }
     }
 
-    /// Factors H (its values as added since [`Self::reset`]).
+    /// Factors H = L Lᵀ in place (its values as added since [`Self::reset`]).
     pub(super) fn factor(&mut self) -> Result<(), NotPositiveDefinite> {
-        let symbolic = self.symbolic.as_ref().expect("a prepared pattern");
-        let ordered = self.ordered.as_ref().expect("a prepared pattern");
-        for (&k, &x) in self.ordered_position.iter().zip(&self.values) {
-            self.ordered_values[k] = x;
+        let Self { order, blocks, below, below_start, panel_start, height, rank, values, .. } = self;
+        for &b in order.iter() {
+            let width = blocks[b].1;
+            let (start, h) = (panel_start[b], height[b]);
+            // Panels are laid out in elimination order: this one's source, later ones after it.
+            let (done, later) = values.split_at_mut(start + h * width);
+            let panel = &mut done[start..];
+            factor_panel(panel, h, width)?;
+            let entries = &below[below_start[b]..below_start[b + 1]];
+            let base = start + h * width;
+            for (p, &(r1, o1)) in entries.iter().enumerate() {
+                let w1 = blocks[r1].1;
+                let (s1, h1) = (panel_start[r1] - base, height[r1]);
+                let later_of_r1 = &below[below_start[r1]..below_start[r1 + 1]];
+                for &(r2, o2) in &entries[p..] {
+                    let w2 = blocks[r2].1;
+                    let (dest, diagonal) =
+                        if r2 == r1 { (0, true) } else { (offset_in(later_of_r1, rank, r2), false) };
+                    // Block (r2, r1) of H −= L_{r2,b} L_{r1,b}ᵀ (its lower triangle on the diagonal).
+                    for j in 0..w1 {
+                        let target = &mut later[s1 + j * h1 + dest..s1 + j * h1 + dest + w2];
+                        let from = if diagonal { j } else { 0 };
+                        for kk in 0..width {
+                            let column = &panel[kk * h..(kk + 1) * h];
+                            let f = column[o1 + j];
+                            if f != 0.0 {
+                                let source = &column[o2 + from..o2 + w2];
+                                for (t, s) in target[from..].iter_mut().zip(source) {
+                                    *t -= f * s;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
         }
-        let matrix = SparseColMatRef::new(ordered.as_ref(), &self.ordered_values);
-        let memory = self.memory.as_mut().expect("a prepared pattern");
-        let stack = MemStack::new(memory);
-        symbolic
-            .factorize_numeric_llt(
-                &mut self.factor,
-                matrix,
-                if self.lower { Side::Lower } else { Side::Upper },
-                LltRegularization::default(),
-                Par::Seq,
-                stack,
-                Default::default(),
-            )
-            .map(|_| ())
-            .map_err(|_| NotPositiveDefinite)
+        Ok(())
     }
 
     /// Solves H x = rhs in place with the last factor.
-    pub(super) fn solve(&mut self, rhs: &mut [f64]) {
-        let symbolic = self.symbolic.as_ref().expect("a prepared pattern");
-        let memory = self.memory.as_mut().expect("a prepared pattern");
-        let stack = MemStack::new(memory);
-        for (&new, &x) in self.order.iter().zip(rhs.iter()) {
-            self.ordered_rhs[new] = x;
+    pub(super) fn solve(&self, rhs: &mut [f64]) {
+        // L y = rhs, blocks in elimination order.
+        for &b in &self.order {
+            let (c, width) = self.blocks[b];
+            let (start, h) = (self.panel_start[b], self.height[b]);
+            let entries = &self.below[self.below_start[b]..self.below_start[b + 1]];
+            for j in 0..width {
+                let column = &self.values[start + j * h..start + (j + 1) * h];
+                let y = rhs[c + j] / column[j];
+                rhs[c + j] = y;
+                for (x, l) in rhs[c + j + 1..c + width].iter_mut().zip(&column[j + 1..width]) {
+                    *x -= l * y;
+                }
+                for &(r, row) in entries {
+                    let (cr, wr) = self.blocks[r];
+                    for (x, l) in rhs[cr..cr + wr].iter_mut().zip(&column[row..row + wr]) {
+                        *x -= l * y;
+                    }
+                }
+            }
         }
-        let n = rhs.len();
-        let ordered = MatMut::from_column_major_slice_mut(&mut self.ordered_rhs, n, 1);
-        LltRef::<'_, usize, f64>::new(symbolic, &self.factor).solve_in_place_with_conj(
-            Conj::No,
-            ordered,
-            Par::Seq,
-            stack,
-        );
-        for (&new, x) in self.order.iter().zip(rhs.iter_mut()) {
-            *x = self.ordered_rhs[new];
+        // Lᵀ x = y, in reverse.
+        for &b in self.order.iter().rev() {
+            let (c, width) = self.blocks[b];
+            let (start, h) = (self.panel_start[b], self.height[b]);
+            let entries = &self.below[self.below_start[b]..self.below_start[b + 1]];
+            for j in (0..width).rev() {
+                let column = &self.values[start + j * h..start + (j + 1) * h];
+                let mut s = rhs[c + j];
+                for (x, l) in rhs[c + j + 1..c + width].iter().zip(&column[j + 1..width]) {
+                    s -= l * x;
+                }
+                for &(r, row) in entries {
+                    let (cr, wr) = self.blocks[r];
+                    for (x, l) in rhs[cr..cr + wr].iter().zip(&column[row..row + wr]) {
+                        s -= l * x;
+                    }
+                }
+                rhs[c + j] = s / column[j];
+            }
         }
     }
 }
 
-/// `from` into `to` (same length) sorted stably by `key` (< `keys`).
-fn counting_sort_by<T: Copy>(from: &[T], to: &mut [T], keys: usize, key: impl Fn(&T) -> usize) {
-    let mut start = vec![0usize; keys + 1];
-    for x in from {
-        start[key(x) + 1] += 1;
+/// The panel row where block `r`'s rows start, among a panel's later blocks `entries`.
+fn offset_in(entries: &[(usize, usize)], rank: &[usize], r: usize) -> usize {
+    let at = entries
+        .binary_search_by_key(&rank[r], |&(block, _)| rank[block])
+        .expect("a later block of the pattern");
+    entries[at].1
+}
+
+/// Cholesky of a panel (`h` rows, `width` columns, column-major): its top `width` × `width`
+/// block becomes L_bb (lower triangle) and the rows below L_rb = H_rb L_bb⁻ᵀ. Left-looking,
+/// column by column, the earlier columns applied four at a time (one pass over the target per
+/// four of them).
+fn factor_panel(panel: &mut [f64], h: usize, width: usize) -> Result<(), NotPositiveDefinite> {
+    for c in 0..width {
+        let (done, rest) = panel.split_at_mut(c * h);
+        let target = &mut rest[c..h];
+        let mut k = 0;
+        while k + 4 <= c {
+            let (a0, a1) = (&done[k * h + c..(k + 1) * h], &done[(k + 1) * h + c..(k + 2) * h]);
+            let (a2, a3) = (&done[(k + 2) * h + c..(k + 3) * h], &done[(k + 3) * h + c..(k + 4) * h]);
+            let (f0, f1, f2, f3) = (a0[0], a1[0], a2[0], a3[0]);
+            for i in 0..target.len() {
+                target[i] -= (f0 * a0[i] + f1 * a1[i]) + (f2 * a2[i] + f3 * a3[i]);
+            }
+            k += 4;
+        }
+        for k in k..c {
+            let a = &done[k * h + c..(k + 1) * h];
+            let f = a[0];
+            if f != 0.0 {
+                for (t, s) in target.iter_mut().zip(a) {
+                    *t -= f * s;
+                }
+            }
+        }
+        let d = target[0];
+        // Also refuses NaN: a pivot that is not a positive finite number.
+        if !(d > 0.0 && d.is_finite()) {
+            return Err(NotPositiveDefinite);
+        }
+        let l = d.sqrt();
+        target[0] = l;
+        let inverse = 1.0 / l;
+        for x in &mut target[1..] {
+            *x *= inverse;
+        }
     }
-    for k in 0..keys {
-        start[k + 1] += start[k];
-    }
-    for x in from {
-        let k = key(x);
-        to[start[k]] = *x;
-        start[k] += 1;
-    }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Adds a symmetric positive semi-definite local block on `columns` to `h` and to `dense`.
+    fn add_both(h: &mut Hessian, dense: &mut nalgebra::DMatrix<f64>, columns: &[usize], seed: f64) {
+        let m = columns.len();
+        // Rank two: vᵀ v + uᵀ u, as a group of two rows.
+        let v: Vec<f64> =
+            (0..m).map(|k| seed + 0.5 * k as f64).chain((0..m).map(|k| (seed * k as f64).cos())).collect();
+        h.add_gram(columns, &v, &v, 2);
+        for a in 0..m {
+            for b in 0..m {
+                dense[(columns[a], columns[b])] += v[a] * v[b] + v[m + a] * v[m + b];
+            }
+        }
+    }
+
+    /// Checks that `h` (assembled like `dense`) multiplies and solves as the dense matrix.
+    fn check_against_dense(h: &mut Hessian, dense: &nalgebra::DMatrix<f64>) {
+        let n = dense.nrows();
+        let x: Vec<f64> = (0..n).map(|k| 1.0 - 0.3 * k as f64).collect();
+        let mut hx = vec![0.0; n];
+        h.multiply(&x, &mut hx);
+        let expected = dense * nalgebra::DVector::from_column_slice(&x);
+        for k in 0..n {
+            assert!((hx[k] - expected[k]).abs() < 1e-13, "row {k}: {} vs {}", hx[k], expected[k]);
+        }
+        h.factor().unwrap();
+        let mut solved = expected.as_slice().to_vec();
+        h.solve(&mut solved);
+        for k in 0..n {
+            assert!((solved[k] - x[k]).abs() < 1e-11, "x[{k}]: {} vs {}", solved[k], x[k]);
+        }
+    }
 
     /// Three blocks, the first and last coupled: entries added through the block pattern give
     /// the dense matrix, and the factor solves it.
@@ -314,29 +471,61 @@ mod tests {
         h.reset();
         let mut dense = nalgebra::DMatrix::<f64>::identity(7, 7);
         // A symmetric local block on columns {1, 5, 6} (blocks 0 and 2) and one on {2, 3, 4}.
-        for (columns, seed) in [(&[1usize, 5, 6][..], 0.3), (&[2usize, 3, 4][..], -0.2)] {
-            let m = columns.len();
-            let v: Vec<f64> = (0..m).map(|k| seed + 0.5 * k as f64).collect();
-            let local: Vec<f64> = (0..m * m).map(|e| v[e / m] * v[e % m]).collect();
-            h.add(columns, &local);
-            for a in 0..m {
-                for b in 0..m {
-                    dense[(columns[a], columns[b])] += local[b * m + a];
+        add_both(&mut h, &mut dense, &[1, 5, 6], 0.3);
+        add_both(&mut h, &mut dense, &[2, 3, 4], -0.2);
+        check_against_dense(&mut h, &dense);
+    }
+
+    /// A ring of six blocks of different widths, each coupled to its neighbours and to one
+    /// across: eliminating any block fills in between its neighbours, so the factor needs the
+    /// fill analysis to be right; it is refactored after new values (the same pattern).
+    #[test]
+    fn a_ring_of_coupled_blocks_with_fill_solves_the_dense_matrix() {
+        let widths = [3, 1, 4, 2, 6, 3];
+        let mut blocks = Vec::new();
+        let mut col = 0;
+        for w in widths {
+            blocks.push((col, w));
+            col += w;
+        }
+        let nv = col;
+        let mut pairs: Vec<(usize, usize)> =
+            (0..6).map(|b| (b.min((b + 1) % 6), b.max((b + 1) % 6))).collect();
+        pairs.push((0, 3));
+        pairs.sort_unstable();
+        let mut h = Hessian::default();
+        h.prepare(&blocks, &pairs);
+        for round in 0..2 {
+            h.prepare(&blocks, &pairs);
+            h.reset();
+            let mut dense = nalgebra::DMatrix::<f64>::identity(nv, nv);
+            for (p, &(a, b)) in pairs.iter().enumerate() {
+                // Two columns of each block of the pair (or its one).
+                let mut columns: Vec<usize> = Vec::new();
+                for block in [a, b] {
+                    let (c, w) = blocks[block];
+                    columns.extend(c..c + w.min(2));
                 }
+                let seed = 0.2 + 0.1 * p as f64 - 0.35 * round as f64;
+                add_both(&mut h, &mut dense, &columns, seed);
             }
+            // Whole diagonal blocks, too.
+            for (b, &(c, w)) in blocks.iter().enumerate() {
+                let columns: Vec<usize> = (c..c + w).collect();
+                add_both(&mut h, &mut dense, &columns, -0.4 + 0.15 * b as f64);
+            }
+            check_against_dense(&mut h, &dense);
         }
-        let x: Vec<f64> = (0..7).map(|k| 1.0 - 0.3 * k as f64).collect();
-        let mut hx = vec![0.0; 7];
-        h.multiply(&x, &mut hx);
-        let expected = &dense * nalgebra::DVector::from_column_slice(&x);
-        for k in 0..7 {
-            assert!((hx[k] - expected[k]).abs() < 1e-14, "row {k}: {} vs {}", hx[k], expected[k]);
-        }
-        h.factor().unwrap();
-        let mut solved = expected.as_slice().to_vec();
-        h.solve(&mut solved);
-        for k in 0..7 {
-            assert!((solved[k] - x[k]).abs() < 1e-12, "x[{k}]: {} vs {}", solved[k], x[k]);
-        }
+        assert_eq!(h.analyses, 1, "the pattern is made once");
+    }
+
+    /// A matrix that is not positive definite (a NaN on the diagonal) is refused.
+    #[test]
+    fn a_nan_pivot_is_refused() {
+        let mut h = Hessian::default();
+        h.prepare(&[(0, 2)], &[]);
+        h.reset();
+        h.add_gram(&[1], &[f64::NAN], &[1.0], 1);
+        assert!(h.factor().is_err());
     }
 }

@@ -137,9 +137,8 @@ struct Workspace {
     gradient: Vec<f64>,
     direction: Vec<f64>,
     sum: Vec<f64>,
-    /// Dense local products G W_g and H_g.
+    /// The dense local product G W_g.
     gw: Vec<f64>,
-    local_h: Vec<f64>,
     hessian: Hessian,
     anderson: anderson::Anderson,
 }
@@ -177,11 +176,27 @@ impl ConstraintSolver for NewtonSolver {
         }
         let goal = self.residual_goal.unwrap_or(1e-9);
         let own_rows = !rows::has_rows(problem);
+        let nv = if own_rows { n } else { problem.sparsity.nv };
+        let ws = &mut self.workspace;
+        for v in [&mut ws.x, &mut ws.gradient, &mut ws.direction, &mut ws.sum] {
+            v.clear();
+            v.resize(nv, 0.0);
+        }
+        if ws.w.len() != n {
+            ws.w = DVector::zeros(n);
+            ws.lambda_vec = DVector::zeros(n);
+        }
+        // A warm start already within the goal is the answer (checked before any set-up: a
+        // resting pile's steps end here).
+        let (residual, report) =
+            certify(problem, &problem.sparsity, own_rows, ws, lambda.as_slice(), Sum::Compute);
+        if residual <= goal {
+            return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
+        }
         if own_rows {
             rows::dense_factor(problem, &mut self.own_w)?;
         }
         let w_rows: &RowSparsity = if own_rows { &self.own_w } else { &problem.sparsity };
-        let ws = &mut self.workspace;
         setup_groups(problem, w_rows, ws)?;
         set_metric(problem, ws, self.epsilon);
         ws.hessian.prepare(&w_rows.blocks, &ws.pairs);
@@ -198,20 +213,6 @@ impl ConstraintSolver for NewtonSolver {
             v.clear();
             v.resize(n, 0.0);
         }
-        let nv = w_rows.nv;
-        for v in [&mut ws.x, &mut ws.gradient, &mut ws.direction, &mut ws.sum] {
-            v.clear();
-            v.resize(nv, 0.0);
-        }
-        if ws.w.len() != n {
-            ws.w = DVector::zeros(n);
-            ws.lambda_vec = DVector::zeros(n);
-        }
-        // A warm start already within the goal is the answer.
-        let (residual, report) = certify(problem, w_rows, own_rows, ws, lambda.as_slice());
-        if residual <= goal {
-            return Ok(SolveInfo { iterations: 0, note: None, residuals: Some(report) });
-        }
         ws.centre.copy_from_slice(lambda.as_slice());
         rows::transpose_product(w_rows, &ws.centre, &mut ws.x);
         let hard = ws.prox.iter().any(|&p| p > 0.0);
@@ -227,7 +228,7 @@ impl ConstraintSolver for NewtonSolver {
             }
             iterations += newton(w_rows, ws, goal, self.max_iterations.saturating_sub(iterations))?;
             let answer = std::mem::take(&mut ws.lambda);
-            let (residual, report) = certify(problem, w_rows, own_rows, ws, &answer);
+            let (residual, report) = certify(problem, w_rows, own_rows, ws, &answer, Sum::Known);
             ws.lambda = answer;
             best_is_last = residual < best.0;
             if best_is_last {
@@ -250,7 +251,7 @@ impl ConstraintSolver for NewtonSolver {
         if !best_is_last {
             // The problem keeps the Wᵀλ of the last answer certified: make it the best one's.
             let answer = std::mem::take(&mut ws.best);
-            certify(problem, w_rows, own_rows, ws, &answer);
+            certify(problem, w_rows, own_rows, ws, &answer, Sum::Compute);
             ws.best = answer;
         }
         lambda.as_mut_slice().copy_from_slice(&ws.best);
@@ -323,26 +324,37 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
     for g in 0..ws.groups.len() {
         let (first, count) = ws.groups[g].rows();
         let start = ws.columns.len();
+        // The rows of a contact usually share their runs (disjoint, most often increasing):
+        // then the first row's columns are the group's, sorted already.
+        let runs = |i: usize| w.row_spans(i).map(|(col, wi)| (col, wi.len()));
+        let shared = (first + 1..first + count).all(|i| runs(i).eq(runs(first)));
         for i in first..first + count {
-            for (col, wi) in w.row_spans(i) {
-                ws.columns.extend(col..col + wi.len());
+            if i == first || !shared {
+                for (col, wi) in w.row_spans(i) {
+                    ws.columns.extend(col..col + wi.len());
+                }
             }
-            let blocks = w.row_blocks(i);
-            for (k, &a) in blocks.iter().enumerate() {
-                for &b in &blocks[k + 1..] {
-                    ws.pairs.push((a.min(b), a.max(b)));
+            if i == first || w.row_blocks(i) != w.row_blocks(first) {
+                let blocks = w.row_blocks(i);
+                for (k, &a) in blocks.iter().enumerate() {
+                    for &b in &blocks[k + 1..] {
+                        ws.pairs.push((a.min(b), a.max(b)));
+                    }
                 }
             }
         }
-        ws.columns[start..].sort_unstable();
-        let mut write = start;
-        for read in start..ws.columns.len() {
-            if write == start || ws.columns[read] != ws.columns[write - 1] {
-                ws.columns[write] = ws.columns[read];
-                write += 1;
+        if !shared || ws.columns[start..].windows(2).any(|p| p[0] >= p[1]) {
+            ws.columns[start..].sort_unstable();
+            let mut write = start;
+            for read in start..ws.columns.len() {
+                if write == start || ws.columns[read] != ws.columns[write - 1] {
+                    ws.columns[write] = ws.columns[read];
+                    write += 1;
+                }
             }
+            ws.columns.truncate(write);
         }
-        ws.columns.truncate(write);
+        let write = ws.columns.len();
         ws.column_start.push(write);
         let cols = write - start;
         ws.local_start.push(ws.local_w.len());
@@ -390,6 +402,13 @@ fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
     ws.prox.extend((0..n).map(|i| ws.e[i] - problem.regularization[i]));
 }
 
+/// Whether `ws.sum` already holds Wᵀλ of the answer being certified.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Sum {
+    Compute,
+    Known,
+}
+
 /// Row velocities w = (A + R) λ + b of `lambda` into `ws.w`, and the convex residual and the
 /// report. With the problem's own W, Wᵀλ is kept with the problem for the velocity update.
 fn certify(
@@ -398,12 +417,15 @@ fn certify(
     own_rows: bool,
     ws: &mut Workspace,
     lambda: &[f64],
+    sum: Sum,
 ) -> (f64, Residuals) {
     ws.lambda_vec.as_mut_slice().copy_from_slice(lambda);
     if own_rows {
         problem.velocities(&ws.lambda_vec, &mut ws.w);
     } else {
-        rows::transpose_product(w_rows, lambda, &mut ws.sum);
+        if sum == Sum::Compute {
+            rows::transpose_product(w_rows, lambda, &mut ws.sum);
+        }
         rows::product(w_rows, &ws.sum, problem.bias.as_slice(), ws.w.as_mut_slice());
         for ((w, r), l) in ws.w.iter_mut().zip(problem.regularization.iter()).zip(lambda) {
             *w += r * l;
@@ -416,13 +438,15 @@ fn certify(
 
 /// Newton iterations on the round's problem (`ws.c`, `ws.e`) from `ws.x`, until the gradient can
 /// change no row velocity by more than a tenth of `goal`, no step moves x, or `budget`
-/// iterations are done; `ws.lambda` is left at λ(x). Returns the iterations done.
+/// iterations are done; `ws.lambda` is left at λ(x) and `ws.sum` at Wᵀλ. Returns the
+/// iterations done.
 fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Result<usize, SolverError> {
     let largest_row = ws.diagonal.iter().copied().fold(0.0, f64::max).sqrt();
     let mut done = 0;
+    rows::product(w, &ws.x, &ws.c, &mut ws.y);
+    evaluate(ws);
     loop {
-        rows::product(w, &ws.x, &ws.c, &mut ws.y);
-        evaluate(ws);
+        // y and λ(y) are at x: from the line above, or from the line search's last trial.
         rows::transpose_product(w, &ws.lambda, &mut ws.sum);
         let mut norm = 0.0;
         for k in 0..ws.x.len() {
@@ -453,6 +477,7 @@ fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Resu
             // No progress left at this precision: the answer stands.
             rows::product(w, &ws.x, &ws.c, &mut ws.y);
             evaluate(ws);
+            rows::transpose_product(w, &ws.lambda, &mut ws.sum);
             return Ok(done);
         }
     }
@@ -486,31 +511,20 @@ fn assemble(ws: &mut Workspace) {
         let m = columns.len();
         let local = &ws.local_w[ws.local_start[g]..ws.local_start[g] + count * m];
         let curvature = &ws.curvature[g];
-        // G W_g (count × m), then H_g = W_gᵀ (G W_g) (m × m, column-major, lower triangle).
+        // G W_g (count × m, row-major), then H += W_gᵀ (G W_g) on the group's columns.
         ws.gw.clear();
         ws.gw.resize(count * m, 0.0);
         for a in 0..count {
             for b in 0..count {
                 let gab = curvature[a * count + b];
                 if gab != 0.0 {
-                    for k in 0..m {
-                        ws.gw[a * m + k] += gab * local[b * m + k];
+                    for (gw, w) in ws.gw[a * m..(a + 1) * m].iter_mut().zip(&local[b * m..(b + 1) * m]) {
+                        *gw += gab * w;
                     }
                 }
             }
         }
-        ws.local_h.clear();
-        ws.local_h.resize(m * m, 0.0);
-        for col in 0..m {
-            for row in col..m {
-                let mut s = 0.0;
-                for a in 0..count {
-                    s += local[a * m + row] * ws.gw[a * m + col];
-                }
-                ws.local_h[col * m + row] = s;
-            }
-        }
-        ws.hessian.add(columns, &ws.local_h);
+        ws.hessian.add_gram(columns, local, &ws.gw, count);
     }
 }
 
