@@ -3,7 +3,11 @@
 //! - `stack10`, step 29: the built-in scene of `gelenk export-problems stack10 --steps 30 --only
 //!   29` (ten boxes, 40 contacts, an 8-facet pyramid: a 400-variable LCP);
 //! - `pile`, step 300: `models/pile.toml` (100 boxes and balls dropped onto a plane, stepped by
-//!   its own PGS chain; about 200 contacts at that step, a 2000-variable LCP).
+//!   its own PGS chain; about 200 contacts at that step, a 2000-variable LCP);
+//! - `pyramid10`, step 100: the corpus scene `pyramid10-dt60` (the stability report's pyramid of
+//!   55 boxes at 1/60 s, stepped by Newton's method and clarabel; some 470 contacts, a
+//!   4700-variable LCP whose degenerate vertices, four coplanar corners under every box, tie
+//!   hundreds of rows).
 //!
 //! Before timing, the LCP size, the pivots, the LCP's natural residual and the residual that
 //! certifies the impulses (on the pyramid Lemke solves) are printed; a solve that fails aborts
@@ -15,6 +19,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use gelenk::constraints::{ConstraintProblem, FrictionModel};
+use gelenk::io::problem::{corpus_world, CorpusWorld, SceneSource};
 use gelenk::solvers::{lcp_of, lemke_with_report, residuals, ConstraintSolver, LemkeMemory, LemkeSolver};
 use gelenk::world::World;
 use nalgebra::DVector;
@@ -31,10 +36,17 @@ fn problem_at(mut world: World, step: usize) -> ConstraintProblem {
 }
 
 fn bench(c: &mut Criterion) {
-    let pile = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pile.toml");
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    let pile = models.join("pile.toml");
+    let pyramid = match corpus_world(&SceneSource::Pyramid { dt: 1.0 / 60.0 }, &models).expect("corpus scene")
+    {
+        CorpusWorld::World(world) => *world,
+        CorpusWorld::Scene(scene) => scene.world,
+    };
     let problems = [
         ("stack10", problem_at(gelenk::scenes::scene_world("stack10").expect("built-in scene"), 29)),
         ("pile", problem_at(gelenk::io::scene::load_file(&pile).expect("models/pile.toml").world, 300)),
+        ("pyramid10", problem_at(pyramid, 100)),
     ];
     let mut group = c.benchmark_group("lemke");
     group.warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3)).sample_size(10);

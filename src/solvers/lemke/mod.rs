@@ -15,6 +15,10 @@
 //!   slightly infeasible (basic values some 1e-9 below zero after hundreds of degenerate
 //!   pivots), a path is restarted from it with the covering vector B·1, which lifts every
 //!   value with one z0 and ends where z0 leaves again ([`path::Path::restart`]).
+//! - As a [`LemkeSolver`] in a solver chain, an answer whose LCP residual misses the tolerance
+//!   (a basis of a highly degenerate vertex, values some 1e-9 below zero) is accepted when the
+//!   problem's own residual, the one the chain certifies, is within the chain's tolerance;
+//!   only otherwise are the other covering vectors tried, each a path from the identity again.
 //! - A path that leaves along a secondary ray returns the ray with its check ([`RayCertificate`]):
 //!   the ray's conditions recomputed from M and q, and whether its direction is a Farkas proof
 //!   that the LCP has no feasible point (then no other covering vector is tried).
@@ -91,6 +95,21 @@ pub struct LemkeReport {
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
     /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
     pub near_solution: bool,
+}
+
+impl LemkeReport {
+    /// The counts of this report and `later`'s summed (the facts of two solves in a row).
+    fn merged(self, later: LemkeReport) -> LemkeReport {
+        LemkeReport {
+            pivots: self.pivots + later.pivots,
+            attempts: self.attempts + later.attempts,
+            refactorizations: self.refactorizations + later.refactorizations,
+            lex_solves: self.lex_solves + later.lex_solves,
+            restarts: self.restarts + later.restarts,
+            swaps: self.swaps + later.swaps,
+            ..later
+        }
+    }
 }
 
 /// Paths restarted from the final basis of a path whose answer misses the tolerance.
@@ -185,7 +204,7 @@ pub fn lemke_with_report(
         return Err(SolverError::InvalidProblem("M or q holds NaN or infinity".into()));
     }
     let m = Csc::from_dense(m);
-    let solution = solve_sparse(&m, q, options, &mut None, LemkeReport::default())?;
+    let solution = solve_sparse(&m, q, options, &mut None, LemkeReport::default(), &mut |_| false)?;
     if !solution.within_tolerance {
         let tolerance = options.tolerance * q.amax().max(1.0);
         return Err(SolverError::Inaccurate {
@@ -224,7 +243,14 @@ struct Solution {
     /// The complementary basis z is the solution of (w_i = i, z_j = n + j, by position), when
     /// it is one (not for a path's end point accepted with z0 dropped).
     pub basis: Option<Vec<usize>>,
+    /// Whether z, above the LCP tolerance, was accepted by the caller's own certificate.
+    pub certified: bool,
 }
+
+/// The caller's certificate of an answer z that misses the LCP tolerance (a [`LemkeSolver`]'s:
+/// the problem's residual within the tolerance its chain certifies against): `true` accepts z
+/// and ends the solve.
+pub(super) type Certify<'a> = dyn FnMut(&DVector<f64>) -> bool + 'a;
 
 /// Whether `vars` is a complementary basis of an LCP of size n: one of w_i, z_i for every i.
 fn is_complementary(vars: &[usize], n: usize) -> bool {
@@ -269,13 +295,15 @@ fn residual_of_columns(cols: &Columns, q: &DVector<f64>, z: &[f64]) -> f64 {
 /// whose values are feasible for this q is the answer without a pivot; one slightly
 /// infeasible is lifted by z0 along the covering vector B·1 and its path followed until z0
 /// leaves ([`Path::restart`]). Unscaled, as M's equilibration (twenty sweeps over its entries)
-/// would cost more than the few pivots from a basis near the answer. `Err` with the work done
-/// when the path ends otherwise or its answer misses the tolerance.
+/// would cost more than the few pivots from a basis near the answer. An answer above the
+/// tolerance is accepted when `certify` accepts it. `Err` with the work done when the path ends
+/// otherwise or its answer is not accepted.
 fn solve_from_basis(
     cols: &mut Columns,
     q: &DVector<f64>,
     options: &LemkeOptions,
     start: &[usize],
+    certify: &mut Certify<'_>,
 ) -> Result<Solution, LemkeReport> {
     let n = q.len();
     let mut report = LemkeReport { warm_started: true, ..Default::default() };
@@ -285,13 +313,19 @@ fn solve_from_basis(
             report,
             within_tolerance: true,
             basis: Some((0..n).collect()),
+            certified: false,
         });
     }
     if !is_complementary(start, n) {
         return Err(report);
     }
     let (mut path_options, tolerance) = path_options(options, q);
-    path_options.max_pivots = path_options.max_pivots.min(n / 2 + 100);
+    // A path from near the answer ends within a few pivots; one that has gone on for more
+    // pivots than the start has active variables (plus 100) is wandering, and the path from the
+    // identity (each active variable enters it once, plus the degenerate exchanges) is the
+    // surer way on.
+    let active = start.iter().filter(|&&var| var >= n).count();
+    path_options.max_pivots = path_options.max_pivots.min(n / 2 + 100).min(active + 100);
     cols.d = covering_of_basis(cols, start);
     let mut path = Path::new(cols, q.as_slice(), path_options);
     let end = path.restart(start);
@@ -304,23 +338,28 @@ fn solve_from_basis(
         report.polished = true;
         let z: Vec<f64> = (0..n).map(|j| path.value(n + j).max(0.0)).collect();
         let residual = residual_of_columns(cols, q, &z);
-        if residual <= tolerance {
+        let within_tolerance = residual <= tolerance;
+        let z = DVector::from_vec(z);
+        if within_tolerance || certify(&z) {
             report.residual = residual;
             let basis = Some(path.basis.vars.clone());
-            return Ok(Solution { z: DVector::from_vec(z), report, within_tolerance: true, basis });
+            return Ok(Solution { z, report, within_tolerance, basis, certified: !within_tolerance });
         }
     }
     Err(report)
 }
 
 /// [`lemke_with_report`] on M by sparse columns (sizes and finiteness checked by the caller),
-/// with M's equilibration (formed here if `None`) and the report of work already done.
+/// with M's equilibration (formed here if `None`) and the report of work already done. A
+/// path's answer above the tolerance that `certify` accepts ends the solve (the other covering
+/// vectors are tried only for answers neither meets).
 fn solve_sparse(
     m: &Csc,
     q: &DVector<f64>,
     options: &LemkeOptions,
     equilibrated: &mut Option<Equilibrated>,
     mut report: LemkeReport,
+    certify: &mut Certify<'_>,
 ) -> Result<Solution, SolverError> {
     let n = q.len();
     if q.iter().all(|&x| x >= 0.0) {
@@ -329,6 +368,7 @@ fn solve_sparse(
             report,
             within_tolerance: true,
             basis: Some((0..n).collect()),
+            certified: false,
         });
     }
     let (path_options, tolerance) = path_options(options, q);
@@ -353,6 +393,10 @@ fn solve_sparse(
         match outcome {
             Attempt::Solved(solution) => return Ok(solution),
             Attempt::Inaccurate(z, residual, basis) => {
+                if certify(&z) {
+                    report.residual = residual;
+                    return Ok(Solution { z, report, within_tolerance: false, basis, certified: true });
+                }
                 if best.as_ref().is_none_or(|(_, r, _)| residual < *r) {
                     best = Some((z, residual, basis));
                 }
@@ -368,7 +412,7 @@ fn solve_sparse(
     match (best, failure) {
         (Some((z, residual, basis)), _) => {
             report.residual = residual;
-            Ok(Solution { z, report, within_tolerance: false, basis })
+            Ok(Solution { z, report, within_tolerance: false, basis, certified: false })
         }
         (None, Some(SolverError::LemkeRay { certificate, .. })) => {
             Err(SolverError::LemkeRay { pivots: report.pivots, certificate })
@@ -445,15 +489,19 @@ fn attempt(
             }
         }
         // The final basis itself is slightly infeasible: a path restarted from it (and once
-        // more from that one's end), the best point kept.
+        // more from that one's end), the best point kept; each restart is a path from a given
+        // basis, held to as many pivots as that basis has active variables plus 100.
         let mut vars = path.basis.vars.clone();
         for _ in 0..RESTARTS {
             if residual <= tolerance {
                 break;
             }
             let restart_cols = Columns { m: cols.m, d: covering_of_basis(cols, &vars) };
-            let restart_options =
-                PathOptions { max_pivots: path_options.max_pivots.min(n / 2 + 100), ..path_options };
+            let active = vars.iter().filter(|&&var| var >= n).count();
+            let restart_options = PathOptions {
+                max_pivots: path_options.max_pivots.min(n / 2 + 100).min(active + 100),
+                ..path_options
+            };
             let mut restart = Path::new(&restart_cols, q_scaled, restart_options);
             let restart_end = restart.restart(&vars);
             report.restarts += 1;
@@ -481,6 +529,7 @@ fn attempt(
             report: report.clone(),
             within_tolerance: true,
             basis,
+            certified: false,
         });
     }
     match end {

@@ -5,7 +5,7 @@ use super::delassus::MatrixKey;
 use super::lcp::{sparse_lcp_of, SparseLcp};
 use super::{solve_from_basis, solve_sparse, Equilibrated, LemkeOptions, LemkeReport};
 use crate::constraints::{ConstraintProblem, FrictionModel};
-use crate::solvers::{check_problem, ConstraintSolver, SolveInfo, SolverError};
+use crate::solvers::{check_problem, residuals, ConstraintSolver, SolveInfo, SolverError};
 use nalgebra::DVector;
 
 /// Lemke's method as a [`ConstraintSolver`] (friction as a pyramid; a cone is approximated by
@@ -18,11 +18,21 @@ pub struct LemkeSolver {
     pub facets: usize,
     /// What the last solve leaves for the next (its LCP and final basis).
     pub memory: LemkeMemory,
+    /// The tolerance (m/s) of the problem's residual that certifies an answer
+    /// ([`ConstraintSolver::set_certified_tolerance`], from a solver chain): an answer whose
+    /// LCP residual misses `options.tolerance` is accepted when its problem residual is within
+    /// this, instead of trying the other covering vectors. `None`: only the LCP tolerance.
+    pub certified_tolerance: Option<f64>,
 }
 
 impl Default for LemkeSolver {
     fn default() -> Self {
-        Self { options: LemkeOptions::default(), facets: 8, memory: LemkeMemory::default() }
+        Self {
+            options: LemkeOptions::default(),
+            facets: 8,
+            memory: LemkeMemory::default(),
+            certified_tolerance: None,
+        }
     }
 }
 
@@ -34,10 +44,17 @@ impl Default for LemkeSolver {
 ///   for bit, as a world poses while its bodies rest and it keeps W) poses the same M: only q
 ///   is formed anew.
 /// - The last basis is the start of the next solve when the LCP has the same variables (the
-///   same rows, laws and contacts): a resting stack's basis stays feasible as q changes a
-///   little, and is then the answer without a pivot; a slightly infeasible one is repaired by
-///   a few pivots from it ([`super::path::Path::restart`]). A start that fails is dropped for
-///   the paths from the identity, so the answer is the one a cold solve certifies.
+///   same rows, laws and contacts) in the same order, which the warm start shows by being the
+///   last answer's impulses bit for bit (a world that matched its rows to the last step's found
+///   each in its place): a resting stack's basis stays feasible as q changes a little, and is
+///   then the answer without a pivot; a slightly infeasible one is repaired by a few pivots
+///   from it ([`super::path::Path::restart`]).
+/// - Otherwise, or when that start fails, a basis is read from the warm-start impulses
+///   ([`SparseLcp::basis_of_impulses`]): a world matches them to the new rows by their contacts'
+///   identity, so contacts that came, went or changed places keep their impulses.
+/// - A path from a start is held to as many pivots as the start has active variables plus 100;
+///   a start that fails is dropped for the paths from the identity, so the answer is the one a
+///   cold solve certifies.
 #[derive(Clone, Debug)]
 pub struct LemkeMemory {
     /// Whether solves start from the last basis and reuse the last M (on by default).
@@ -49,6 +66,8 @@ pub struct LemkeMemory {
     /// The last answer's complementary basis and the laws and contact rows of its problem.
     basis: Option<Vec<usize>>,
     shape: (Vec<crate::constraints::RowLaw>, Vec<usize>, usize),
+    /// The last answer's impulses λ.
+    impulses: DVector<f64>,
     /// Facts of the last solve.
     pub last: LemkeReport,
     /// Solves whose M was the last solve's (only q formed).
@@ -64,6 +83,7 @@ impl Default for LemkeMemory {
             equilibrated: None,
             basis: None,
             shape: (Vec::new(), Vec::new(), 0),
+            impulses: DVector::zeros(0),
             last: LemkeReport::default(),
             reused_matrices: 0,
         }
@@ -89,6 +109,10 @@ impl LemkeMemory {
 impl ConstraintSolver for LemkeSolver {
     fn name(&self) -> &'static str {
         "lemke"
+    }
+
+    fn set_certified_tolerance(&mut self, tolerance: f64) {
+        self.certified_tolerance = Some(tolerance);
     }
 
     fn solve(
@@ -117,31 +141,65 @@ impl ConstraintSolver for LemkeSolver {
                 memory.key.fill(problem, facets);
             }
         }
-        let lcp = memory.lcp.as_ref().expect("formed above");
-        // The last basis when the LCP has the same variables, else one read from the warm start.
-        let kept = memory.basis.take().filter(|_| memory.enabled && memory.shape_matches(problem, facets));
-        let start = match kept {
-            Some(basis) => Some(basis),
-            None if memory.enabled && lambda.iter().any(|&l| l != 0.0) => {
-                lcp.basis_of_impulses(problem, facets, lambda)
-            }
-            None => None,
-        };
+        // The starts tried in order: the last basis, when the LCP has the same variables in the
+        // same order (λ is then the last answer's impulses: the rows came as they were), and the
+        // basis read from the warm start λ (the caller's impulses matched to the rows by their
+        // contacts' identity), unless it is the same basis.
+        let enabled = memory.enabled;
+        let kept = memory.basis.take().filter(|_| {
+            memory.enabled && memory.shape_matches(problem, facets) && memory.impulses == *lambda
+        });
         let lcp = memory.lcp.as_mut().expect("formed above");
-        let warm = match start {
-            Some(start) => solve_from_basis(
+        // An answer above the LCP tolerance is accepted when the problem's residual (the one
+        // the chain certifies) is within the chain's tolerance.
+        let mut scratch = DVector::zeros(0);
+        let tolerance = self.certified_tolerance;
+        let mut certify = |lcp: &SparseLcp, z: &DVector<f64>| {
+            tolerance.is_some_and(|tolerance| {
+                let r = residuals(problem, &lcp.impulses(z), &mut scratch);
+                r.exact() <= tolerance
+            })
+        };
+        let mut warm = Err(LemkeReport::default());
+        if let Some(start) = &kept {
+            warm = solve_from_basis(
                 &mut Columns { m: Matrix::Lazy(lcp), d: Vec::new() },
                 &lcp.q,
                 &self.options,
-                &start,
-            ),
-            None => Err(LemkeReport::default()),
-        };
+                start,
+                &mut |z| certify(lcp, z),
+            );
+        }
+        if let Err(done) = &warm {
+            let read = (enabled && lambda.iter().any(|&l| l != 0.0))
+                .then(|| lcp.basis_of_impulses(problem, facets, lambda))
+                .flatten()
+                .filter(|read| kept.as_ref() != Some(read));
+            if let Some(start) = read {
+                let done = done.clone();
+                warm = solve_from_basis(
+                    &mut Columns { m: Matrix::Lazy(lcp), d: Vec::new() },
+                    &lcp.q,
+                    &self.options,
+                    &start,
+                    &mut |z| certify(lcp, z),
+                )
+                .map(|mut solution| {
+                    solution.report = done.clone().merged(solution.report);
+                    solution
+                })
+                .map_err(|report| done.merged(report));
+            }
+        }
         let outcome = match warm {
             Ok(solution) => Ok(solution),
             Err(report) => {
-                let q = lcp.q.clone();
-                solve_sparse(lcp.form_m(), &q, &self.options, &mut memory.equilibrated, report)
+                lcp.form_m();
+                let lcp = &*lcp;
+                let m = lcp.m.as_ref().expect("formed above");
+                solve_sparse(m, &lcp.q, &self.options, &mut memory.equilibrated, report, &mut |z| {
+                    certify(lcp, z)
+                })
             }
         };
         let solution = match outcome {
@@ -153,6 +211,7 @@ impl ConstraintSolver for LemkeSolver {
         };
         let lcp = memory.lcp.as_ref().expect("formed above");
         *lambda = lcp.impulses(&solution.z);
+        memory.impulses.clone_from(lambda);
         memory.last = solution.report.clone();
         if memory.enabled {
             memory.basis = solution.basis;
@@ -167,7 +226,12 @@ impl ConstraintSolver for LemkeSolver {
         if matches!(problem.friction, FrictionModel::Cone) {
             notes.push(format!("friction cone approximated by a {}-facet pyramid", self.facets));
         }
-        if !solution.within_tolerance {
+        if solution.certified {
+            notes.push(format!(
+                "LCP residual {:.2e} above Lemke's {:.0e} relative to ‖q‖, accepted on the problem's residual",
+                solution.report.residual, self.options.tolerance
+            ));
+        } else if !solution.within_tolerance {
             // Every path ended on a basis whose values are some 1e-10 below zero (a highly
             // degenerate vertex, as of a pile of boxes on redundant corners): the best answer is
             // handed on for the caller to certify by the problem's residuals.
