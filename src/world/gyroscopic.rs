@@ -114,16 +114,17 @@ impl Gyroscopic {
         // Each body's subtree of the root (its ancestor whose parent is the root), and the dofs
         // of each such subtree (contiguous: bodies are numbered depth-first).
         let mut top = vec![0usize; model.nbodies()];
-        let mut dofs = vec![usize::MAX..0; model.nbodies()];
+        // (first dof, end) per subtree, grown body by body from nothing.
+        let mut dofs = vec![(usize::MAX, 0); model.nbodies()];
         for i in 1..model.nbodies() {
             top[i] = if model.parent(i) == 0 { i } else { top[model.parent(i)] };
-            let own = model.idx_v(i)..model.idx_v(i) + model.joint(i).nv();
+            let (start, end) = (model.idx_v(i), model.idx_v(i) + model.joint(i).nv());
             let range = &mut dofs[top[i]];
-            *range = range.start.min(own.start)..range.end.max(own.end);
+            *range = (range.0.min(start), range.1.max(end));
         }
         let candidates: Vec<(usize, Mat3, Range<usize>)> = (1..model.nbodies())
             .filter_map(|i| match model.joint(i) {
-                Joint::Free => Some((i, model.inertia(i).inertia_com(), dofs[top[i]].clone())),
+                Joint::Free => Some((i, model.inertia(i).inertia_com(), dofs[top[i]].0..dofs[top[i]].1)),
                 _ => None,
             })
             .collect();

@@ -17,6 +17,7 @@ use nalgebra::DVector;
 
 /// Fewest rows in a step (all islands together) for its islands to be solved on several
 /// threads.
+#[cfg_attr(not(feature = "parallel"), allow(dead_code))]
 pub const PARALLEL_MIN_ROWS: usize = 64;
 
 /// One island's chain, problem and impulses (kept between steps).
