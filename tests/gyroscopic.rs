@@ -129,7 +129,7 @@ fn tumblers_in_one_model_spin_as_each_alone() {
     let mut b = ModelBuilder::new();
     for (k, inertia) in inertias.iter().enumerate() {
         b.add_body(BodySpec::new(
-            &format!("body{k}"),
+            format!("body{k}"),
             "universe",
             Joint::Free,
             Transform::identity(),
