@@ -247,6 +247,19 @@ struct Solution {
     pub certified: bool,
 }
 
+impl Solution {
+    /// z = 0 for a q ≥ 0: every w basic, no pivot.
+    fn trivial(n: usize, report: LemkeReport) -> Self {
+        Self {
+            z: DVector::zeros(n),
+            report,
+            within_tolerance: true,
+            basis: Some((0..n).collect()),
+            certified: false,
+        }
+    }
+}
+
 /// The caller's certificate of an answer z that misses the LCP tolerance (a [`LemkeSolver`]'s:
 /// the problem's residual within the tolerance its chain certifies against): `true` accepts z
 /// and ends the solve.
@@ -308,13 +321,7 @@ fn solve_from_basis(
     let n = q.len();
     let mut report = LemkeReport { warm_started: true, ..Default::default() };
     if q.iter().all(|&x| x >= 0.0) {
-        return Ok(Solution {
-            z: DVector::zeros(n),
-            report,
-            within_tolerance: true,
-            basis: Some((0..n).collect()),
-            certified: false,
-        });
+        return Ok(Solution::trivial(n, report));
     }
     if !is_complementary(start, n) {
         return Err(report);
@@ -363,13 +370,7 @@ fn solve_sparse(
 ) -> Result<Solution, SolverError> {
     let n = q.len();
     if q.iter().all(|&x| x >= 0.0) {
-        return Ok(Solution {
-            z: DVector::zeros(n),
-            report,
-            within_tolerance: true,
-            basis: Some((0..n).collect()),
-            certified: false,
-        });
+        return Ok(Solution::trivial(n, report));
     }
     let (path_options, tolerance) = path_options(options, q);
     let scaled_q =
