@@ -41,7 +41,13 @@ pub(super) struct Hessian {
     panel_start: Vec<usize>,
     height: Vec<usize>,
     block_of_col: Vec<usize>,
+    /// H's lower triangle as assembled, by panels; kept across factorizations, so that a
+    /// Newton iteration adds only what changed since the last.
+    assembled: Vec<f64>,
+    /// The panels being factored: a copy of `assembled`, then L.
     values: Vec<f64>,
+    /// Scratch of [`Hessian::add_gram`]: where a group's segments start among its columns.
+    segments: Vec<usize>,
     /// Symbolic analyses done (patterns made).
     pub(super) analyses: usize,
 }
@@ -79,6 +85,8 @@ impl Hessian {
             self.panel_start[b] = start;
             start += self.height[b] * blocks[b].1;
         }
+        self.assembled.clear();
+        self.assembled.resize(start, 0.0);
         self.values.clear();
         self.values.resize(start, 0.0);
     }
@@ -226,52 +234,75 @@ impl Hessian {
 
     /// Sets H to the identity (the pattern's other entries to 0).
     pub(super) fn reset(&mut self) {
-        self.values.fill(0.0);
+        self.assembled.fill(0.0);
         for (b, &(_, width)) in self.blocks.iter().enumerate() {
             let (start, h) = (self.panel_start[b], self.height[b]);
             for j in 0..width {
-                self.values[start + j * h + j] = 1.0;
+                self.assembled[start + j * h + j] = 1.0;
             }
         }
     }
 
     /// Adds the lower triangle of the symmetric `leftᵀ right` (both `count` × `columns.len()`,
     /// row-major) at the rows and columns `columns` (increasing): a group's `W_gᵀ (G W_g)`,
-    /// entry by entry into the panels, without forming it.
+    /// into the panels without forming it. The group's columns fall into segments of
+    /// consecutive columns of one block, whose entries in a column of H are consecutive in a
+    /// panel (or one panel row apart, when the segment's block is eliminated first): each
+    /// segment is added by one short loop over contiguous rows of `left`.
     pub(super) fn add_gram(&mut self, columns: &[usize], left: &[f64], right: &[f64], count: usize) {
         let m = columns.len();
+        let mut segments = std::mem::take(&mut self.segments);
+        segments.clear();
+        for a in 0..m {
+            let joins = a > 0
+                && columns[a] == columns[a - 1] + 1
+                && self.block_of_col[columns[a]] == self.block_of_col[columns[a - 1]];
+            if !joins {
+                segments.push(a);
+            }
+        }
+        segments.push(m);
+        let mut first_segment = 0;
         for b in 0..m {
             let j = columns[b];
             let block_of_j = self.block_of_col[j];
-            // Entries of one block in column j are rows of one panel column, or one row across
-            // panel columns: find the first once per run.
-            let mut a = b;
-            while a < m {
-                let first = columns[a];
-                let block = self.block_of_col[first];
-                let start = self.position(first, j);
+            while segments[first_segment + 1] <= b {
+                first_segment += 1;
+            }
+            let weights = [
+                right[b],
+                if count > 1 { right[m + b] } else { 0.0 },
+                if count > 2 { right[2 * m + b] } else { 0.0 },
+            ];
+            for s in first_segment..segments.len() - 1 {
+                let (from, to) = (segments[s].max(b), segments[s + 1]);
+                let block = self.block_of_col[columns[from]];
+                let start = self.position(columns[from], j);
                 let transposed = block != block_of_j && self.rank[block] < self.rank[block_of_j];
-                let stride = if transposed { self.height[block] } else { 1 };
-                while a < m && self.block_of_col[columns[a]] == block {
-                    let mut sum = 0.0;
-                    for r in 0..count {
-                        sum += left[r * m + a] * right[r * m + b];
+                let len = to - from;
+                if count <= 3 && !transposed {
+                    let target = &mut self.assembled[start..start + len];
+                    add_rows(target, left, m, from, count, &weights);
+                } else {
+                    let stride = if transposed { self.height[block] } else { 1 };
+                    for a in from..to {
+                        let sum: f64 = (0..count).map(|r| left[r * m + a] * right[r * m + b]).sum();
+                        self.assembled[start + (a - from) * stride] += sum;
                     }
-                    self.values[start + (columns[a] - first) * stride] += sum;
-                    a += 1;
                 }
             }
         }
+        self.segments = segments;
     }
 
-    /// out = H x from the stored lower triangle (before [`Self::factor`]).
+    /// out = H x from the assembled lower triangle.
     #[cfg(test)]
     pub(super) fn multiply(&self, x: &[f64], out: &mut [f64]) {
         out.fill(0.0);
         for (b, &(c, width)) in self.blocks.iter().enumerate() {
             let (start, h) = (self.panel_start[b], self.height[b]);
             for j in 0..width {
-                let column = &self.values[start + j * h..start + (j + 1) * h];
+                let column = &self.assembled[start + j * h..start + (j + 1) * h];
                 for i in j..width {
                     out[c + i] += column[i] * x[c + j];
                     if i != j {
@@ -289,8 +320,9 @@ impl Hessian {
         }
     }
 
-    /// Factors H = L Lᵀ in place (its values as added since [`Self::reset`]).
+    /// Factors H = L Lᵀ (its values as added since [`Self::reset`], which stay assembled).
     pub(super) fn factor(&mut self) -> Result<(), NotPositiveDefinite> {
+        self.values.copy_from_slice(&self.assembled);
         let Self { order, blocks, below, below_start, panel_start, height, rank, values, .. } = self;
         for &b in order.iter() {
             let width = blocks[b].1;
@@ -375,6 +407,29 @@ impl Hessian {
     }
 }
 
+/// `target[k] += Σ_r weights[r] · left[r · m + from + k]` over the first `count` (≤ 3) rows.
+fn add_rows(target: &mut [f64], left: &[f64], m: usize, from: usize, count: usize, weights: &[f64; 3]) {
+    let len = target.len();
+    let row = |r: usize| &left[r * m + from..r * m + from + len];
+    match count {
+        1 => {
+            for (t, l0) in target.iter_mut().zip(row(0)) {
+                *t += weights[0] * l0;
+            }
+        }
+        2 => {
+            for ((t, l0), l1) in target.iter_mut().zip(row(0)).zip(row(1)) {
+                *t += weights[0] * l0 + weights[1] * l1;
+            }
+        }
+        _ => {
+            for (((t, l0), l1), l2) in target.iter_mut().zip(row(0)).zip(row(1)).zip(row(2)) {
+                *t += weights[0] * l0 + weights[1] * l1 + weights[2] * l2;
+            }
+        }
+    }
+}
+
 /// The panel row where block `r`'s rows start, among a panel's later blocks `entries`.
 fn offset_in(entries: &[(usize, usize)], rank: &[usize], r: usize) -> usize {
     let at = entries
@@ -431,14 +486,30 @@ mod tests {
 
     /// Adds a symmetric positive semi-definite local block on `columns` to `h` and to `dense`.
     fn add_both(h: &mut Hessian, dense: &mut nalgebra::DMatrix<f64>, columns: &[usize], seed: f64) {
+        add_rank(h, dense, columns, seed, 2);
+    }
+
+    /// Adds `Σ_r v_rᵀ v_r` over `count` rows v_r on `columns` to `h` and to `dense`, as a group
+    /// of `count` rows.
+    fn add_rank(
+        h: &mut Hessian,
+        dense: &mut nalgebra::DMatrix<f64>,
+        columns: &[usize],
+        seed: f64,
+        count: usize,
+    ) {
         let m = columns.len();
-        // Rank two: vᵀ v + uᵀ u, as a group of two rows.
-        let v: Vec<f64> =
-            (0..m).map(|k| seed + 0.5 * k as f64).chain((0..m).map(|k| (seed * k as f64).cos())).collect();
-        h.add_gram(columns, &v, &v, 2);
+        let v: Vec<f64> = (0..count * m)
+            .map(|i| {
+                let (r, k) = ((i / m) as f64, (i % m) as f64);
+                (seed * (k + 1.0) + 0.7 * r).cos() + 0.5 * k * (r - 1.0)
+            })
+            .collect();
+        h.add_gram(columns, &v, &v, count);
         for a in 0..m {
             for b in 0..m {
-                dense[(columns[a], columns[b])] += v[a] * v[b] + v[m + a] * v[m + b];
+                dense[(columns[a], columns[b])] +=
+                    (0..count).map(|r| v[r * m + a] * v[r * m + b]).sum::<f64>();
             }
         }
     }
@@ -517,6 +588,27 @@ mod tests {
             check_against_dense(&mut h, &dense);
         }
         assert_eq!(h.analyses, 1, "the pattern is made once");
+    }
+
+    /// Groups of one to four rows over columns with gaps and across blocks, added in turns
+    /// with factorizations between them: the assembled matrix survives each factorization, so
+    /// later additions (a Newton iteration's changes) land on it, and every factor solves the
+    /// dense sum so far.
+    #[test]
+    fn additions_after_a_factorization_accumulate_on_the_assembled_matrix() {
+        let blocks = [(0, 4), (4, 6), (10, 3)];
+        let pairs = [(0, 1), (1, 2)];
+        let mut h = Hessian::default();
+        h.prepare(&blocks, &pairs);
+        h.reset();
+        let mut dense = nalgebra::DMatrix::<f64>::identity(13, 13);
+        let groups: [&[usize]; 4] = [&[0, 1, 3, 5, 6, 7, 9], &[2, 3, 4, 8, 9], &[6, 10, 11, 12], &[0, 2]];
+        for (turn, count) in [1, 3, 2, 4].into_iter().enumerate() {
+            for (g, columns) in groups.iter().enumerate() {
+                add_rank(&mut h, &mut dense, columns, 0.3 + 0.2 * g as f64 - 0.1 * turn as f64, count);
+            }
+            check_against_dense(&mut h, &dense);
+        }
     }
 
     /// A matrix that is not positive definite (a NaN on the diagonal) is refused.

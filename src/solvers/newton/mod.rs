@@ -140,6 +140,10 @@ struct Workspace {
     /// The dense local product G W_g.
     gw: Vec<f64>,
     hessian: Hessian,
+    /// Per group, the Hessian block its term in the assembled H was made with (zeros while
+    /// its zone is free), and whether the assembled H belongs to this solve's groups.
+    assembled_curvature: Vec<[f64; 9]>,
+    assembled: bool,
     anderson: anderson::Anderson,
 }
 
@@ -200,6 +204,7 @@ impl ConstraintSolver for NewtonSolver {
         setup_groups(problem, w_rows, ws)?;
         set_metric(problem, ws, self.epsilon);
         ws.hessian.prepare(&w_rows.blocks, &ws.pairs);
+        ws.assembled = false;
         for v in [
             &mut ws.c,
             &mut ws.y,
@@ -499,24 +504,33 @@ fn evaluate(ws: &mut Workspace) {
     }
 }
 
-/// H = I + Σ_g W_gᵀ G_g W_g over the groups with curvature.
+/// H = I + Σ_g W_gᵀ G_g W_g over the groups with curvature. Within a solve only the groups
+/// whose G changed since the last assembly add their change: a sticking contact's G is
+/// constant, a separated one's zero, so most of a settled pile's terms stay as they are.
 fn assemble(ws: &mut Workspace) {
-    ws.hessian.reset();
+    if !ws.assembled {
+        ws.hessian.reset();
+        ws.assembled_curvature.clear();
+        ws.assembled_curvature.resize(ws.groups.len(), [0.0; 9]);
+        ws.assembled = true;
+    }
     for g in 0..ws.groups.len() {
-        if ws.zones[g] == Zone::Free {
+        let (_, count) = ws.groups[g].rows();
+        let entries = count * count;
+        let now = if ws.zones[g] == Zone::Free { [0.0; 9] } else { ws.curvature[g] };
+        let before = ws.assembled_curvature[g];
+        if now[..entries] == before[..entries] {
             continue;
         }
-        let (_, count) = ws.groups[g].rows();
         let columns = &ws.columns[ws.column_start[g]..ws.column_start[g + 1]];
         let m = columns.len();
         let local = &ws.local_w[ws.local_start[g]..ws.local_start[g] + count * m];
-        let curvature = &ws.curvature[g];
-        // G W_g (count × m, row-major), then H += W_gᵀ (G W_g) on the group's columns.
+        // ΔG W_g (count × m, row-major), then H += W_gᵀ (ΔG W_g) on the group's columns.
         ws.gw.clear();
         ws.gw.resize(count * m, 0.0);
         for a in 0..count {
             for b in 0..count {
-                let gab = curvature[a * count + b];
+                let gab = now[a * count + b] - before[a * count + b];
                 if gab != 0.0 {
                     for (gw, w) in ws.gw[a * m..(a + 1) * m].iter_mut().zip(&local[b * m..(b + 1) * m]) {
                         *gw += gab * w;
@@ -525,6 +539,7 @@ fn assemble(ws: &mut Workspace) {
             }
         }
         ws.hessian.add_gram(columns, local, &ws.gw, count);
+        ws.assembled_curvature[g] = now;
     }
 }
 
