@@ -140,10 +140,13 @@ struct Workspace {
     /// The dense local product G W_g.
     gw: Vec<f64>,
     hessian: Hessian,
-    /// Per group, the Hessian block its term in the assembled H was made with (zeros while
-    /// its zone is free), and whether the assembled H belongs to this solve's groups.
+    /// Per group, the Hessian block and zone its term in the assembled H was made with (zeros
+    /// while its zone is free), and whether the assembled H belongs to this solve's groups.
     assembled_curvature: Vec<[f64; 9]>,
+    assembled_zones: Vec<Zone>,
     assembled: bool,
+    /// Whether the Hessian's factor is of an assembly of this solve.
+    factored: bool,
     anderson: anderson::Anderson,
 }
 
@@ -395,9 +398,24 @@ fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
         if let Group::Cone { normal, .. } = ws.groups[g] {
             let c = &problem.contacts[contact_of_normal(problem, normal).expect("a contact normal")];
             let (t1, t2) = (normal + 1, normal + 2);
-            let kappa2 = (c.mu * c.mu * ws.e[t1]).max(c.mu2 * c.mu2 * ws.e[t2]);
-            ws.e[t1] = kappa2 / (c.mu * c.mu);
-            ws.e[t2] = kappa2 / (c.mu2 * c.mu2);
+            // A friction row softened relative to its contact's normal (as the world's softness
+            // does) is soft enough by that measure: its own diagonal, which may be far larger
+            // (a tangent that spins a slender limb), would make it hard and cost proximal rounds.
+            let soft_floor = epsilon * ws.diagonal[normal].max(floor);
+            for t in [t1, t2] {
+                if problem.regularization[t] >= soft_floor {
+                    ws.e[t] = problem.regularization[t];
+                }
+            }
+            // Only the smaller side is raised (a round trip through μ² would leave the other
+            // a rounding error above its R, and a row above its R is a hard one).
+            let (k1, k2) = (c.mu * c.mu * ws.e[t1], c.mu2 * c.mu2 * ws.e[t2]);
+            let kappa2 = k1.max(k2);
+            if k1 < k2 {
+                ws.e[t1] = kappa2 / (c.mu * c.mu);
+            } else if k2 < k1 {
+                ws.e[t2] = kappa2 / (c.mu2 * c.mu2);
+            }
             ws.groups[g] = Group::Cone { normal, slope: kappa2.sqrt() / ws.e[normal].sqrt() };
         }
     }
@@ -448,6 +466,7 @@ fn certify(
 fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Result<usize, SolverError> {
     let largest_row = ws.diagonal.iter().copied().fold(0.0, f64::max).sqrt();
     let mut done = 0;
+    let mut previous_norm = f64::INFINITY;
     rows::product(w, &ws.x, &ws.c, &mut ws.y);
     evaluate(ws);
     loop {
@@ -461,10 +480,20 @@ fn newton(w: &RowSparsity, ws: &mut Workspace, goal: f64, budget: usize) -> Resu
         if largest_row * norm.sqrt() <= 0.1 * goal || done >= budget {
             return Ok(done);
         }
-        assemble(ws);
-        ws.hessian.factor().map_err(|_| {
-            SolverError::InvalidProblem("newton: the Hessian is not positive definite".into())
-        })?;
+        // Near the answer (the last step shrank the gradient tenfold or more) with the same
+        // zones as at the last factorization, only sliding contacts' G moved a little: the
+        // last factor still gives a descent direction that converges fast (the line search
+        // keeps it safe), and refactoring the Hessian is most of an iteration's cost.
+        let assembly = assemble(ws);
+        let converging = norm <= 0.1 * previous_norm;
+        let reuse = ws.factored && (!assembly.changed || (converging && !assembly.zones_changed));
+        if !reuse {
+            ws.hessian.factor().map_err(|_| {
+                SolverError::InvalidProblem("newton: the Hessian is not positive definite".into())
+            })?;
+            ws.factored = true;
+        }
+        previous_norm = norm;
         for k in 0..ws.x.len() {
             ws.direction[k] = -ws.gradient[k];
         }
@@ -507,21 +536,30 @@ fn evaluate(ws: &mut Workspace) {
 /// H = I + Σ_g W_gᵀ G_g W_g over the groups with curvature. Within a solve only the groups
 /// whose G changed since the last assembly add their change: a sticking contact's G is
 /// constant, a separated one's zero, so most of a settled pile's terms stay as they are.
-fn assemble(ws: &mut Workspace) {
+fn assemble(ws: &mut Workspace) -> Assembly {
+    let mut assembly = Assembly { changed: !ws.assembled, zones_changed: !ws.assembled };
     if !ws.assembled {
         ws.hessian.reset();
         ws.assembled_curvature.clear();
         ws.assembled_curvature.resize(ws.groups.len(), [0.0; 9]);
+        ws.assembled_zones.clear();
+        ws.assembled_zones.resize(ws.groups.len(), Zone::Free);
         ws.assembled = true;
+        ws.factored = false;
     }
     for g in 0..ws.groups.len() {
         let (_, count) = ws.groups[g].rows();
         let entries = count * count;
         let now = if ws.zones[g] == Zone::Free { [0.0; 9] } else { ws.curvature[g] };
         let before = ws.assembled_curvature[g];
+        if ws.zones[g] != ws.assembled_zones[g] {
+            ws.assembled_zones[g] = ws.zones[g];
+            assembly.zones_changed = true;
+        }
         if now[..entries] == before[..entries] {
             continue;
         }
+        assembly.changed = true;
         let columns = &ws.columns[ws.column_start[g]..ws.column_start[g + 1]];
         let m = columns.len();
         let local = &ws.local_w[ws.local_start[g]..ws.local_start[g] + count * m];
@@ -541,6 +579,15 @@ fn assemble(ws: &mut Workspace) {
         ws.hessian.add_gram(columns, local, &ws.gw, count);
         ws.assembled_curvature[g] = now;
     }
+    assembly
+}
+
+/// What an assembly of the Hessian changed since the last.
+struct Assembly {
+    /// Some group's G (H is new).
+    changed: bool,
+    /// Some group's zone (the active set).
+    zones_changed: bool,
 }
 
 /// The step α > 0 along `ws.direction` (with `ws.u` = W d) where the directional derivative
@@ -601,4 +648,29 @@ fn line_search(ws: &mut Workspace) -> f64 {
         derivative(alpha, ws);
     }
     alpha
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::constraints::ContactBlock;
+    use nalgebra::DMatrix;
+
+    /// A contact whose tangents are thirty times stiffer than its normal (a tangent that spins
+    /// a slender limb), softened as the world's softness does (R = 0.1 A_nn on all three rows):
+    /// every row counts as soft, so the problem is solved in one round without proximal terms.
+    #[test]
+    fn friction_softened_like_its_normal_makes_no_hard_row() {
+        let a = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0, 30.0, 30.0]));
+        let laws = vec![RowLaw::Unilateral, RowLaw::Friction { contact: 0 }, RowLaw::Friction { contact: 0 }];
+        let contact = ContactBlock { normal: 0, mu: 0.5, mu2: 0.5 };
+        let bias = DVector::from_vec(vec![-1.0, 0.2, -0.1]);
+        let mut problem = ConstraintProblem::from_parts(a, bias, laws, vec![contact], FrictionModel::Cone);
+        problem.regularization.fill(0.1);
+        let mut solver = NewtonSolver::default();
+        let mut lambda = DVector::zeros(3);
+        let info = solver.solve(&problem, &mut lambda).unwrap();
+        assert!(info.residuals.unwrap().convex() <= 1e-9);
+        assert_eq!(solver.workspace.prox, vec![0.0; 3], "metric {:?}", solver.workspace.e);
+    }
 }
