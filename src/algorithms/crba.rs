@@ -173,7 +173,7 @@ fn composite_rigid_body_entries(
 /// rotational inertia's six distinct entries once. With `h = r h_b` and `g = h + m t / 2`:
 /// `I_o' = r I_o rᵀ − (t gᵀ + g tᵀ) + 2 (g·t) 1`, `h' = h + m t`.
 #[inline(always)]
-pub(super) fn rotated_shifted(inertia: &SpatialInertia, r: &Mat3, t: &Vec3) -> SpatialInertia {
+fn rotated_shifted(inertia: &SpatialInertia, r: &Mat3, t: &Vec3) -> SpatialInertia {
     let m = inertia.mass;
     let h = r * inertia.first_moment;
     let ri = r * inertia.inertia_origin;
