@@ -1,5 +1,6 @@
-//! Criterion benchmarks of RNEA, CRBA and ABA: the robots of models (ur5, panda, solo12
-//! with a free base), a 30-link chain, and chains of 10, 100 and 1000 links for the cost per dof.
+//! Criterion benchmarks of RNEA, CRBA, the mass matrix alone (`mass_matrix`) and ABA: the robots
+//! of models (ur5, panda, solo12 with a free base), a 30-link chain, and chains of 10, 100 and
+//! 1000 links for the cost per dof.
 //! Each model is loaded once; every iteration takes the next state of a pool of random states.
 //!
 //! Run: `cargo bench --bench dynamics` (add `-- crba` to filter).
@@ -80,6 +81,12 @@ fn run(c: &mut Criterion, group_name: &str, models: Vec<(String, Model)>, per_do
             b.iter(|| {
                 k = (k + 1) % POOL;
                 black_box(crba(&f.model, &mut f.data, &f.qs[k]).ok());
+            })
+        });
+        group.bench_function(BenchmarkId::new("mass_matrix", &name), |b| {
+            b.iter(|| {
+                k = (k + 1) % POOL;
+                black_box(mass_matrix(&f.model, &mut f.data, &f.qs[k]).ok());
             })
         });
         group.bench_function(BenchmarkId::new("aba", &name), |b| {

@@ -20,12 +20,14 @@ harness with `--rounds INNER`, both the median over INNER passes of the mean ns 
 median and range.
 
 CRBA compares two ways. `pinocchio::crba` writes the upper triangle of M only, in either of its
-conventions: LOCAL (its default) computes M alone; WORLD also the joints' world poses, the world
-Jacobian and the centroidal momentum map. `gelenk::algorithms::crba` computes the world poses,
-the world Jacobian columns and the whole symmetric M (and checks that M is finite): like for like
-is Pinocchio's WORLD followed by the copy of the upper triangle into the lower one ("CRBA, same
-outputs"); "CRBA vs M alone" is against LOCAL's upper triangle. RNEA: `pinocchio::rnea`. ABA:
-the faster of `pinocchio::aba`'s LOCAL and WORLD conventions in each round.
+conventions: LOCAL (its default) computes M alone, in body frames; WORLD also the joints' world
+poses, the world Jacobian and the centroidal momentum map. `gelenk::algorithms::crba` computes
+the world poses, the world Jacobian columns and the whole symmetric M (and checks that M is
+finite): like for like is Pinocchio's WORLD followed by the copy of the upper triangle into the
+lower one ("CRBA, same outputs"). `gelenk::algorithms::mass_matrix` computes M alone in body
+frames, both triangles, and checks it is finite: "M alone" is against LOCAL's upper triangle.
+RNEA: `pinocchio::rnea`. ABA: the faster of `pinocchio::aba`'s LOCAL and WORLD conventions in
+each round.
 """
 import argparse
 import json
@@ -46,7 +48,7 @@ DEFINES = [
     "-DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS",
     "-DBOOST_FUSION_INVOKE_MAX_ARITY=12",
 ]
-GELENK_LINE = re.compile(r"^(rnea|crba|aba|nle)\s+([0-9.]+) ns/call", re.M)
+GELENK_LINE = re.compile(r"^(rnea|crba|mass_matrix|aba|nle)\s+([0-9.]+) ns/call", re.M)
 GELENK_DIMS = re.compile(r"\(nq = (\d+), nv = (\d+)\)")
 
 
@@ -124,7 +126,7 @@ def run_gelenk(binary, urdf, floating, inner):
         raise SystemExit(f"{' '.join(command)} failed:\n{e.stderr}")
     dims = GELENK_DIMS.search(out)
     times = {name: float(ns) for name, ns in GELENK_LINE.findall(out)}
-    if dims is None or set(times) != {"rnea", "crba", "aba", "nle"}:
+    if dims is None or set(times) != {"rnea", "crba", "mass_matrix", "aba", "nle"}:
         raise SystemExit(f"{' '.join(command)}: unexpected output:\n{out}")
     return (int(dims.group(1)), int(dims.group(2))), times
 
@@ -186,13 +188,14 @@ def main():
                 "pinocchio": {
                     "rnea": theirs["rnea_ns"],
                     "crba": theirs["crba_world_symmetric_ns"],
-                    "crba_local": theirs["crba_local_ns"],
+                    "mass_matrix": theirs["crba_local_ns"],
                     "aba": min(theirs["aba_local_ns"], theirs["aba_world_ns"]),
                 },
             }
             samples[label].append(sample)
             print(
-                f"round {r + 1} {label}: gelenk rnea/crba/aba {ours['rnea']:.0f}/{ours['crba']:.0f}/{ours['aba']:.0f} ns; "
+                f"round {r + 1} {label}: gelenk rnea/crba/mass_matrix/aba "
+                f"{ours['rnea']:.0f}/{ours['crba']:.0f}/{ours['mass_matrix']:.0f}/{ours['aba']:.0f} ns; "
                 f"Pinocchio rnea {theirs['rnea_ns']:.0f}, crba world+mirror {theirs['crba_world_symmetric_ns']:.0f}, "
                 f"world {theirs['crba_world_ns']:.0f}, local {theirs['crba_local_ns']:.0f}, "
                 f"aba {sample['pinocchio']['aba']:.0f} ns",
@@ -206,11 +209,11 @@ def main():
     print(f"{args.rounds} alternating rounds, medians (range) of per-round figures, ns per call")
     print("| model (nq/nv) | algorithm | gelenk | Pinocchio | gelenk ÷ Pinocchio |")
     print("|---|---|---:|---:|---:|")
-    names = {"rnea": "RNEA", "crba": "CRBA, same outputs", "crba_local": "CRBA vs M alone", "aba": "ABA"}
+    names = {"rnea": "RNEA", "crba": "CRBA, same outputs", "mass_matrix": "M alone", "aba": "ABA"}
     for label, _, _, _, nq, nv in prepared:
         rows = samples[label]
         for algorithm, name in names.items():
-            ours = [s["ours"][algorithm.removesuffix("_local")] for s in rows]
+            ours = [s["ours"][algorithm] for s in rows]
             theirs = [s["pinocchio"][algorithm] for s in rows]
             ratios = [a / b for a, b in zip(ours, theirs)]
             print(f"| {label} ({nq}/{nv}) | {name} | {spread(ours)} | {spread(theirs)} | {spread(ratios, 2)} |")

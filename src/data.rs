@@ -30,6 +30,13 @@ pub struct Data {
     /// Composite rigid-body inertia of each subtree, in world axes about the CRBA reference point
     /// (the first body's origin; see [`crate::algorithms::crba`]).
     pub ycrb: Vec<SpatialInertia>,
+    /// Composite rigid-body inertia of each subtree, in the body's own frame (about its origin,
+    /// in its axes), from [`crate::algorithms::mass_matrix`].
+    pub ycrb_body: Vec<SpatialInertia>,
+    /// [`crate::algorithms::mass_matrix`]'s forces `Iᶜ S_k`, one per dof k, as six rows of nv
+    /// (force x, y, z then moment x, y, z): during its pass, the forces of a subtree's dofs in
+    /// the frame of the body being visited.
+    pub(crate) subtree_forces: Vec<f64>,
     /// Joint motion-subspace columns in world axes about the CRBA reference point (the first
     /// body's origin), one per velocity dof: [`crate::algorithms::crba`]'s working copy of
     /// `j_world`, kept near the bodies so that M does not lose digits far from the origin.
@@ -99,6 +106,8 @@ impl Data {
             s: vec![Motion::zero(); nv],
             j_world: vec![Motion::zero(); nv],
             ycrb: vec![SpatialInertia::zero(); n],
+            ycrb_body: vec![SpatialInertia::zero(); n],
+            subtree_forces: vec![0.0; 6 * nv],
             j_crba: vec![Motion::zero(); nv],
             ia: vec![Mat6::zeros(); n],
             pa: vec![Force::zero(); n],

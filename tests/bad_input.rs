@@ -590,6 +590,7 @@ fn wrong_length_q_is_refused_by_every_algorithm() {
     dim(nonlinear_effects(&model, &mut data, &q, &v).unwrap_err(), "q", 6, 5);
     dim(generalized_gravity(&model, &mut data, &q).unwrap_err(), "q", 6, 5);
     dim(crba(&model, &mut data, &q).unwrap_err(), "q", 6, 5);
+    dim(mass_matrix(&model, &mut data, &q).unwrap_err(), "q", 6, 5);
     dim(aba(&model, &mut data, &q, &v, &v).unwrap_err(), "q", 6, 5);
     dim(forward_dynamics_crba(&model, &mut data, &q, &v, &v).unwrap_err(), "q", 6, 5);
     dim(kinetic_energy(&model, &mut data, &q, &v).unwrap_err(), "q", 6, 5);
@@ -649,10 +650,31 @@ fn non_finite_inputs_name_the_joint() {
     let mut q_bad = q.clone();
     q_bad[4] = f64::NAN;
     non_finite(crba(&model, &mut data, &q_bad).unwrap_err(), "q", 4, "ball_joint");
+    non_finite(mass_matrix(&model, &mut data, &q_bad).unwrap_err(), "q", 4, "ball_joint");
     non_finite(forward_kinematics(&model, &mut data, &q_bad).unwrap_err(), "q", 4, "ball_joint");
     let mut q_bad = q.clone();
     q_bad[5] = f64::NAN;
     non_finite(potential_energy(&model, &mut data, &q_bad).unwrap_err(), "q", 5, "slide_joint");
+}
+
+/// A finite q whose M overflows (a slider 1e200 m out on a ball joint: its inertia about the
+/// ball's origin is m·t² = ∞) is a non-finite result naming the first column's joint, the same
+/// error from the world-frame CRBA and the body-frame mass matrix.
+#[test]
+fn an_overflowing_mass_matrix_is_a_typed_error() {
+    let model = small_model();
+    let mut data = Data::new(&model);
+    let mut q = model.neutral_configuration();
+    q[5] = 1e200;
+    let world = crba(&model, &mut data, &q).unwrap_err();
+    let local = mass_matrix(&model, &mut Data::new(&model), &q).unwrap_err();
+    assert!(
+        matches!(&local, DynamicsError::NonFiniteResult { what: "mass matrix", at } if at.contains("joint `")),
+        "{local:?}"
+    );
+    assert_eq!(local, world);
+    q[5] = 1e3;
+    assert!(mass_matrix(&model, &mut data, &q).unwrap().iter().all(|x| x.is_finite()));
 }
 
 /// A zero quaternion is no rotation: refused by the joint's name (normalizing it would divide by
@@ -668,6 +690,7 @@ fn a_zero_quaternion_is_refused_and_others_are_normalized() {
     for e in [
         aba(&model, &mut data, &q, &zero, &zero).unwrap_err(),
         crba(&model, &mut data, &q).unwrap_err(),
+        mass_matrix(&model, &mut data, &q).unwrap_err(),
         forward_kinematics(&model, &mut data, &q).unwrap_err(),
     ] {
         assert!(
@@ -735,6 +758,8 @@ fn massless_leaf_is_a_singular_mass_matrix() {
     assert_eq!(t[model.idx_v(tip_id)], 0.0);
     let m = crba(&model, &mut data, &rng_q).unwrap();
     assert!(m.iter().all(|x| x.is_finite()));
+    let local = mass_matrix(&model, &mut data, &rng_q).unwrap();
+    assert!(local.iter().all(|x| x.is_finite()));
 }
 
 #[test]

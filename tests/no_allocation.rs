@@ -73,6 +73,7 @@ fn run_all(
     sum += nonlinear_effects(model, data, q, v).unwrap()[0];
     sum += generalized_gravity(model, data, q).unwrap()[0];
     sum += crba(model, data, q).unwrap()[(0, 0)];
+    sum += mass_matrix(model, data, q).unwrap()[(0, 0)];
     sum += aba(model, data, q, v, tau).unwrap()[0];
     sum += forward_dynamics_crba(model, data, q, v, tau).unwrap()[0];
     sum += kinetic_energy(model, data, q, v).unwrap();
@@ -139,6 +140,7 @@ fn algorithms_do_not_allocate_after_data_new() {
         check("nonlinear_effects", allocations_in(|| nonlinear_effects(model, &mut data, q, v).is_ok()).0);
         check("generalized_gravity", allocations_in(|| generalized_gravity(model, &mut data, q).is_ok()).0);
         check("crba", allocations_in(|| crba(model, &mut data, q).is_ok()).0);
+        check("mass_matrix", allocations_in(|| mass_matrix(model, &mut data, q).is_ok()).0);
         check("aba", allocations_in(|| aba(model, &mut data, q, v, tau).is_ok()).0);
         check(
             "forward_dynamics_crba",

@@ -1,5 +1,5 @@
 //! Every quantity of every state in tests/data/reference (Pinocchio 4.1.0) is reproduced to 1e-9
-//! relative to max(1, |reference|): mass matrix, nonlinear effects, gravity, RNEA, ABA, CRBA-based
+//! relative to max(1, |reference|): mass matrix (world-frame CRBA and body-frame `mass_matrix`), nonlinear effects, gravity, RNEA, ABA, CRBA-based
 //! forward dynamics, energies, centre of mass, mass, joint placements and the last joint's local
 //! Jacobian; and the joint index layout is Pinocchio's.
 
@@ -44,6 +44,18 @@ fn dynamics_match_pinocchio() {
             let (q, v, a, tau) = (dvec(&s["q"]), dvec(&s["v"]), dvec(&s["a"]), dvec(&s["tau"]));
             let m = crba(&model, &mut data, &q).unwrap().clone();
             check(&name, k, "mass_matrix", m.as_slice(), dmat(&s["mass_matrix"]).as_slice());
+            // M alone, in body frames, from its own fresh workspace and from the one the other
+            // algorithms use.
+            let local = mass_matrix(&model, &mut Data::new(&model), &q).unwrap().clone();
+            check(
+                &name,
+                k,
+                "mass_matrix (body frames)",
+                local.as_slice(),
+                dmat(&s["mass_matrix"]).as_slice(),
+            );
+            check(&name, k, "mass_matrix (body frames) against crba", local.as_slice(), m.as_slice());
+            assert_eq!(&local, mass_matrix(&model, &mut data, &q).unwrap(), "{name} state {k}");
             check(
                 &name,
                 k,

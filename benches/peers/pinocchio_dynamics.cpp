@@ -19,8 +19,9 @@
 // Prints one JSON line: {"nq","nv","rnea_ns","crba_local_ns","crba_world_ns",
 // "crba_world_symmetric_ns","aba_local_ns","aba_world_ns","nle_ns","mass_checksum"}.
 // `crba_local_ns` and `crba_world_ns` are `pinocchio::crba` in its two conventions, which write
-// M's upper triangle only: LOCAL (the default) computes M alone, WORLD also the joints' world
-// poses `data.oMi`, the world Jacobian `data.J` and the centroidal map `data.Ag`.
+// M's upper triangle only: LOCAL (the default) computes M alone (as
+// `gelenk::algorithms::mass_matrix` does), WORLD also the joints' world poses `data.oMi`, the
+// world Jacobian `data.J` and the centroidal map `data.Ag`.
 // `crba_world_symmetric_ns` is WORLD followed by the copy of the strict upper triangle into the
 // lower one: what `gelenk::algorithms::crba` computes (world poses, world Jacobian columns, the
 // whole M). `aba_local_ns` and `aba_world_ns`: `pinocchio::aba` in its two conventions.

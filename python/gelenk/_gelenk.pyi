@@ -105,7 +105,7 @@ class Data:
     def __init__(self, model: Model) -> None: ...
     @property
     def mass_matrix(self) -> Array:
-        """The mass matrix M(q) of the last `crba` (nv × nv, symmetric)."""
+        """The mass matrix M(q) of the last `crba` or `mass_matrix` (nv × nv, symmetric)."""
     @property
     def ddq(self) -> Array:
         """The accelerations of the last `aba` (nv)."""
@@ -193,6 +193,10 @@ def aba(model: Model, data: Data, q: Array, v: Array, tau: Array) -> Array:
     """
 def crba(model: Model, data: Data, q: Array) -> Array:
     """The joint-space mass matrix M(q) (composite rigid-body algorithm), nv × nv, symmetric."""
+def mass_matrix(model: Model, data: Data, q: Array) -> Array:
+    """The joint-space mass matrix M(q) alone, nv × nv, symmetric: the same M as `crba`, computed
+    in body frames without the world poses and Jacobian columns that `crba` also leaves in `data`.
+    """
 def nonlinear_effects(model: Model, data: Data, q: Array, v: Array) -> Array:
     """The nonlinear effects C(q, v) v + g(q) = rnea(q, v, 0)."""
 def generalized_gravity(model: Model, data: Data, q: Array) -> Array:

@@ -86,6 +86,24 @@ pub fn crba<'py>(
     })
 }
 
+/// The joint-space mass matrix M(q) alone, nv × nv, symmetric: the same M as `crba`, computed
+/// in body frames without the world poses and Jacobian columns that `crba` also leaves in `data`.
+#[pyfunction]
+pub fn mass_matrix<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyModel>,
+    mut data: PyRefMut<'py, PyData>,
+    q: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let m = &model.get().model;
+    let d = &mut *data;
+    inputs(m, d, q, None, None)?;
+    errors::guard(|| {
+        let mass = alg::mass_matrix(m, &mut d.data, &d.q).map_err(errors::dynamics)?;
+        Ok(to_py2(py, mass))
+    })
+}
+
 /// The nonlinear effects C(q, v) v + g(q) = rnea(q, v, 0).
 #[pyfunction]
 pub fn nonlinear_effects<'py>(

@@ -5,7 +5,7 @@
 //! | file | binds |
 //! |---|---|
 //! | `model.rs` | `Model`, `Data`, `ModelBuilder`, `load_urdf`, `integrate`, `difference` |
-//! | `algorithms.rs` | `rnea`, `aba`, `crba`, `nonlinear_effects`, `generalized_gravity`, kinematics, frames, Jacobians, energies |
+//! | `algorithms.rs` | `rnea`, `aba`, `crba`, `mass_matrix`, `nonlinear_effects`, `generalized_gravity`, kinematics, frames, Jacobians, energies |
 //! | `world.rs` (with `sim.rs`) | `World`, `load_scene`, `load_mjcf` |
 //! | `contacts.rs` | contacts and constraint problems as arrays, `export_problems`, `read_problem` |
 //! | `rollout.rs` | `rollout` |
@@ -40,6 +40,7 @@ fn _gelenk(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(algorithms::rnea, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::aba, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::crba, m)?)?;
+    m.add_function(wrap_pyfunction!(algorithms::mass_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::nonlinear_effects, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::generalized_gravity, m)?)?;
     m.add_function(wrap_pyfunction!(algorithms::forward_kinematics, m)?)?;

@@ -78,6 +78,7 @@ def test_dynamics_match_pinocchio(repo):
         for k, s in enumerate(case["states"]):
             q, v, a, tau = (np.array(s[key], dtype=float) for key in ("q", "v", "a", "tau"))
             check(name, k, "mass_matrix", gelenk.crba(model, data, q), s["mass_matrix"])
+            check(name, k, "mass_matrix (body frames)", gelenk.mass_matrix(model, gelenk.Data(model), q), s["mass_matrix"])
             check(name, k, "nle", gelenk.nonlinear_effects(model, data, q, v), s["nle"])
             check(name, k, "gravity", gelenk.generalized_gravity(model, data, q), s["gravity"])
             check(name, k, "rnea", gelenk.rnea(model, data, q, v, a), s["rnea"])

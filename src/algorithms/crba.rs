@@ -48,18 +48,15 @@ pub fn crba<'d>(
     Ok(m)
 }
 
-/// True when every entry is finite: `x · 0` is 0 for a finite x and NaN otherwise, summed in
-/// four independent lanes (a vectorized pass; the element-wise test with early exit is not).
-fn all_finite(values: &[f64]) -> bool {
-    let mut lanes = [0.0f64; 4];
-    let mut chunks = values.chunks_exact(4);
-    for chunk in &mut chunks {
-        for (lane, x) in lanes.iter_mut().zip(chunk) {
-            *lane += x * 0.0;
-        }
-    }
-    let tail: f64 = chunks.remainder().iter().map(|x| x * 0.0).sum();
-    (lanes.iter().sum::<f64>() + tail) == 0.0
+/// True when every entry is finite. A value is not finite when its exponent bits are all set,
+/// so that adding one to the exponent field carries into the sign bit: OR-ed over the values,
+/// an integer reduction that the compiler vectorizes (the element-wise test with early exit
+/// does not vectorize, and a float sum waits on the adder at every step).
+pub(super) fn all_finite(values: &[f64]) -> bool {
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    const EXPONENT_ONE: u64 = 0x0010_0000_0000_0000;
+    let carries = values.iter().fold(0, |any, x| any | ((x.to_bits() & EXPONENT) + EXPONENT_ONE));
+    carries & (1 << 63) == 0
 }
 
 /// CRBA after [`compute_joint_jacobians`] at the same q (the joint transforms, body poses and

@@ -8,6 +8,7 @@ mod energy;
 mod factor;
 pub(crate) mod jacobian;
 mod kinematics;
+mod mass_matrix;
 mod momentum;
 mod rnea;
 
@@ -22,6 +23,7 @@ pub use factor::{
 pub(crate) use factor::{factor_packed_mass_matrix, pack_mass_matrix, solve_mass_matrix_dofs};
 pub use jacobian::{compute_joint_jacobians, frame_jacobian, JacobianFrame};
 pub use kinematics::{forward_kinematics, frame_placement};
+pub use mass_matrix::mass_matrix;
 pub(crate) use momentum::{has_screw_joints_only, momentum_and_lagrangian_force};
 pub(crate) use rnea::nonlinear_effects_at_kinematics;
 pub use rnea::{generalized_gravity, nonlinear_effects, rnea};

@@ -355,6 +355,7 @@ impl ModelBuilder {
             dof_run_start: Vec::new(),
             dof_path: Vec::new(),
             dof_path_start: Vec::new(),
+            subtree_dof_end: Vec::new(),
             lower_position_limit: DVector::zeros(0),
             upper_position_limit: DVector::zeros(0),
             velocity_limit: DVector::zeros(0),
@@ -435,6 +436,13 @@ impl ModelBuilder {
             }
             model.dof_path[first..].reverse();
             model.dof_path_start.push(model.dof_path.len());
+        }
+        // Depth-first numbering: a subtree's bodies, and so its dofs, follow its root's.
+        let nbodies = model.joints.len();
+        model.subtree_dof_end = (0..nbodies).map(|i| model.idx_v[i] + model.joints[i].nv()).collect();
+        for i in (1..nbodies).rev() {
+            let p = model.parents[i];
+            model.subtree_dof_end[p] = model.subtree_dof_end[p].max(model.subtree_dof_end[i]);
         }
         Ok(model)
     }

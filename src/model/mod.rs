@@ -77,6 +77,9 @@ pub struct Model {
     pub(crate) dof_path: Vec<usize>,
     /// Offsets into `dof_path`, one per dof plus one.
     pub(crate) dof_path_start: Vec<usize>,
+    /// Per body i, one past the last dof of i's subtree: the subtree's dofs are
+    /// `idx_v[i]..subtree_dof_end[i]` (bodies are numbered depth first, so they are contiguous).
+    pub(crate) subtree_dof_end: Vec<usize>,
     pub(crate) lower_position_limit: DVector<f64>,
     pub(crate) upper_position_limit: DVector<f64>,
     pub(crate) velocity_limit: DVector<f64>,

@@ -12,7 +12,8 @@ use std::time::Instant;
 // The benchmarks.
 #[derive(clap::Subcommand)]
 pub enum BenchCommand {
-    /// Median ns per call of rnea, crba, aba and nle over a pool of random states.
+    /// Median ns per call of rnea, crba, mass_matrix (M alone), aba and nle over a pool of
+    /// random states.
     Dynamics {
         /// URDF file.
         model: PathBuf,
@@ -124,6 +125,9 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
     let crba_ns = median_ns(rounds, POOL, |k| {
         black_box(crba(&model, &mut data, &qs[k]).ok());
     });
+    let mass_matrix_ns = median_ns(rounds, POOL, |k| {
+        black_box(mass_matrix(&model, &mut data, &qs[k]).ok());
+    });
     let aba_ns = median_ns(rounds, POOL, |k| {
         black_box(aba(&model, &mut data, &qs[k], &vs[k], &accs[k]).ok());
     });
@@ -131,7 +135,11 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
         black_box(nonlinear_effects(&model, &mut data, &qs[k], &vs[k]).ok());
     });
     if as_json {
-        println!("{}", json!({"rnea_ns": rnea_ns, "crba_ns": crba_ns, "aba_ns": aba_ns, "nle_ns": nle_ns}));
+        println!(
+            "{}",
+            json!({"rnea_ns": rnea_ns, "crba_ns": crba_ns, "mass_matrix_ns": mass_matrix_ns,
+                   "aba_ns": aba_ns, "nle_ns": nle_ns})
+        );
     } else {
         println!(
             "model `{}` (nq = {}, nv = {}), median of {rounds} rounds over {POOL} random states",
@@ -139,8 +147,14 @@ fn bench_dynamics(path: &Path, floating: bool, as_json: bool, rounds: usize) -> 
             model.nq(),
             model.nv()
         );
-        for (name, ns) in [("rnea", rnea_ns), ("crba", crba_ns), ("aba", aba_ns), ("nle", nle_ns)] {
-            println!("{name:<6} {ns:>10.0} ns/call");
+        for (name, ns) in [
+            ("rnea", rnea_ns),
+            ("crba", crba_ns),
+            ("mass_matrix", mass_matrix_ns),
+            ("aba", aba_ns),
+            ("nle", nle_ns),
+        ] {
+            println!("{name:<11} {ns:>10.0} ns/call");
         }
     }
     Ok(())

@@ -171,6 +171,23 @@ impl Joint {
         }
     }
 
+    /// [`Joint::placed_transform`] stored into `out` by each kind's own arm: a hinge's pose
+    /// goes from registers to `out`, where a pose returned from the match passes through a
+    /// stack slot (the other kinds' call fills it) that the caller then waits to read back.
+    #[inline(always)]
+    pub(crate) fn write_placed_transform(
+        &self,
+        placement: &Transform,
+        q: &[f64],
+        s: &mut [Motion],
+        out: &mut Transform,
+    ) {
+        match self {
+            Joint::Hinge { axis } => *out = hinge::placed_transform(placement, axis, q, s),
+            _ => *out = self.placed_transform_general(placement, q, s),
+        }
+    }
+
     #[inline(never)]
     fn placed_transform_general(&self, placement: &Transform, q: &[f64], s: &mut [Motion]) -> Transform {
         placement * &self.transform_and_subspace(q, s)
