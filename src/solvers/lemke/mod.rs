@@ -61,11 +61,28 @@ pub struct LemkeOptions {
     pub tolerance: f64,
     /// Column updates between refactorizations of the basis (0: chosen from the sizes).
     pub refactor_interval: usize,
+    /// Harris's degeneracy tolerance δ of the ratio test, relative to max(1, ‖q‖∞) of the LCP a
+    /// path runs on: basic values within δ of zero count as degenerate (the lexicographic rule
+    /// chooses among their rows) and a pivot may leave a basic value at −δ. A quarter of the
+    /// default `tolerance`: on the degenerate LCPs of box piles (a zero-compliance Delassus
+    /// matrix of rank far below its size, four coplanar corners under every box, eight friction
+    /// facets of a sticking contact with zero sliding speed) a δ near rounding (1e-11) lets
+    /// rounding noise of ill-conditioned bases decide hundreds of ties, and paths wander (blocks
+    /// of 600 and more variables) into singular bases and false rays; a δ near the tolerance
+    /// keeps the blocks at the size of the answer's active set and the overshoots, cleaned by
+    /// [`path::Path::clean`] and restarts, within the tolerance.
+    pub degeneracy_tolerance: f64,
 }
 
 impl Default for LemkeOptions {
     fn default() -> Self {
-        Self { max_pivots: 0, pivot_tolerance: 1e-9, tolerance: 1e-9, refactor_interval: 0 }
+        Self {
+            max_pivots: 0,
+            pivot_tolerance: 1e-9,
+            tolerance: 1e-9,
+            refactor_interval: 0,
+            degeneracy_tolerance: 2.5e-10,
+        }
     }
 }
 
@@ -282,6 +299,7 @@ fn path_options(options: &LemkeOptions, q: &DVector<f64>) -> (PathOptions, f64) 
         max_pivots: if options.max_pivots == 0 { 10 * n + 100 } else { options.max_pivots },
         pivot_tolerance: options.pivot_tolerance,
         refactor_interval: options.refactor_interval,
+        degeneracy_tolerance: options.degeneracy_tolerance,
     };
     (path_options, options.tolerance * q.amax().max(1.0))
 }
@@ -341,16 +359,29 @@ fn solve_from_basis(
     report.lex_solves += path.lex_solves;
     report.refactorizations += path.basis.refactorizations;
     report.factorized_size = path.basis.factorized_size();
-    if end == PathEnd::Solved && path.polish(2).is_ok() {
-        report.polished = true;
-        let z: Vec<f64> = (0..n).map(|j| path.value(n + j).max(0.0)).collect();
-        let residual = residual_of_columns(cols, q, &z);
-        let within_tolerance = residual <= tolerance;
-        let z = DVector::from_vec(z);
+    if end == PathEnd::Solved {
+        let z_of = |path: &Path| -> Vec<f64> { (0..n).map(|j| path.value(n + j).max(0.0)).collect() };
+        let residual_of = |z: &[f64]| residual_of_columns(cols, q, z);
+        let repaired = repair_final_basis(
+            &mut path,
+            q.as_slice(),
+            path_options,
+            tolerance,
+            &mut report,
+            &z_of,
+            &residual_of,
+        );
+        let within_tolerance = repaired.residual <= tolerance;
+        let z = DVector::from_vec(repaired.z);
         if within_tolerance || certify(&z) {
-            report.residual = residual;
-            let basis = Some(path.basis.vars.clone());
-            return Ok(Solution { z, report, within_tolerance, basis, certified: !within_tolerance });
+            report.residual = repaired.residual;
+            return Ok(Solution {
+                z,
+                report,
+                within_tolerance,
+                basis: repaired.basis,
+                certified: !within_tolerance,
+            });
         }
     }
     Err(report)
@@ -458,70 +489,19 @@ fn attempt(
     report.factorized_size = path.basis.factorized_size();
     let z_of =
         |path: &Path| -> Vec<f64> { (0..n).map(|j| (scaling.col[j] * path.value(n + j)).max(0.0)).collect() };
-    // The path's point, z0 dropped: a solution when the path ended there, and possibly one
-    // within the tolerance when it ended otherwise with z0 already near zero.
-    let mut z = z_of(&path);
-    let mut residual = natural_residual(m, q, &z);
-    let mut basis = (end == PathEnd::Solved).then(|| path.basis.vars.clone());
-    if end == PathEnd::Solved {
-        let refactorizations = path.basis.refactorizations;
-        if path.polish(2).is_ok() {
-            report.polished = true;
-            report.refactorizations += path.basis.refactorizations - refactorizations;
-            let polished = z_of(&path);
-            let polished_residual = natural_residual(m, q, &polished);
-            if polished_residual <= residual {
-                (z, residual) = (polished, polished_residual);
-            }
-            // Slightly negative values of the final basis: principal pivots to a clean one.
-            if residual > tolerance {
-                let vars = path.basis.vars.clone();
-                if let Ok(swaps) = path.clean(SWAPS) {
-                    report.swaps += swaps;
-                    let cleaned = z_of(&path);
-                    let cleaned_residual = natural_residual(m, q, &cleaned);
-                    if cleaned_residual < residual {
-                        (z, residual) = (cleaned, cleaned_residual);
-                        basis = Some(path.basis.vars.clone());
-                    } else {
-                        basis = Some(vars);
-                    }
-                }
-            }
-        }
-        // The final basis itself is slightly infeasible: a path restarted from it (and once
-        // more from that one's end), the best point kept; each restart is a path from a given
-        // basis, held to as many pivots as that basis has active variables plus 100.
-        let mut vars = path.basis.vars.clone();
-        for _ in 0..RESTARTS {
-            if residual <= tolerance {
-                break;
-            }
-            let restart_cols = Columns { m: cols.m, d: covering_of_basis(cols, &vars) };
-            let active = vars.iter().filter(|&&var| var >= n).count();
-            let restart_options = PathOptions {
-                max_pivots: path_options.max_pivots.min(n / 2 + 100).min(active + 100),
-                ..path_options
-            };
-            let mut restart = Path::new(&restart_cols, q_scaled, restart_options);
-            let restart_end = restart.restart(&vars);
-            report.restarts += 1;
-            report.pivots += restart.pivots;
-            report.lex_solves += restart.lex_solves;
-            report.refactorizations += restart.basis.refactorizations;
-            if restart_end != PathEnd::Solved {
-                break;
-            }
-            let _ = restart.polish(2);
-            let restarted = z_of(&restart);
-            let restarted_residual = natural_residual(m, q, &restarted);
-            if restarted_residual < residual {
-                (z, residual) = (restarted, restarted_residual);
-                basis = Some(restart.basis.vars.clone());
-            }
-            vars.copy_from_slice(&restart.basis.vars);
-        }
-    }
+    // The path's point, z0 dropped: a solution when the path ended there (made as accurate as
+    // its final basis allows), and possibly one within the tolerance when it ended otherwise
+    // with z0 already near zero.
+    let residual_of = |z: &[f64]| natural_residual(m, q, z);
+    let (z, residual, basis) = if end == PathEnd::Solved {
+        let repaired =
+            repair_final_basis(&mut path, q_scaled, path_options, tolerance, report, &z_of, &residual_of);
+        (repaired.z, repaired.residual, repaired.basis)
+    } else {
+        let z = z_of(&path);
+        let residual = residual_of(&z);
+        (z, residual, None)
+    };
     if residual <= tolerance {
         report.residual = residual;
         report.near_solution = end != PathEnd::Solved;
@@ -552,6 +532,93 @@ fn attempt(
             false,
         ),
     }
+}
+
+/// A path's answer after [`repair_final_basis`]: z (original units), its natural residual on
+/// the original LCP and its complementary basis.
+struct Repaired {
+    z: Vec<f64>,
+    residual: f64,
+    basis: Option<Vec<usize>>,
+}
+
+/// The answer of a path that ended with z0 leaving (`Solved`), made as accurate as its final
+/// basis allows: the values polished (fresh factorization and refinement); a basis whose values
+/// are slightly negative repaired by principal pivots ([`Path::clean`]); and a basis still
+/// slightly infeasible taken as the start of a path with the covering vector B·1
+/// ([`Path::restart`]), twice at most, each held to as many pivots as that basis has active
+/// variables plus 100. `z_of` reads z (in the original units) from a path, `residual_of` its
+/// natural residual on the original LCP; the best answer is returned.
+fn repair_final_basis(
+    path: &mut Path,
+    q_path: &[f64],
+    path_options: PathOptions,
+    tolerance: f64,
+    report: &mut LemkeReport,
+    z_of: &dyn Fn(&Path) -> Vec<f64>,
+    residual_of: &dyn Fn(&[f64]) -> f64,
+) -> Repaired {
+    let n = q_path.len();
+    let mut z = z_of(path);
+    let mut residual = residual_of(&z);
+    let mut basis = Some(path.basis.vars.clone());
+    let refactorizations = path.basis.refactorizations;
+    if path.polish(2).is_ok() {
+        report.polished = true;
+        report.refactorizations += path.basis.refactorizations - refactorizations;
+        let polished = z_of(path);
+        let polished_residual = residual_of(&polished);
+        if polished_residual <= residual {
+            (z, residual) = (polished, polished_residual);
+        }
+        // Slightly negative values of the final basis: principal pivots to a clean one.
+        if residual > tolerance {
+            let vars = path.basis.vars.clone();
+            if let Ok(swaps) = path.clean(SWAPS) {
+                report.swaps += swaps;
+                let cleaned = z_of(path);
+                let cleaned_residual = residual_of(&cleaned);
+                if cleaned_residual < residual {
+                    (z, residual) = (cleaned, cleaned_residual);
+                    basis = Some(path.basis.vars.clone());
+                } else {
+                    basis = Some(vars);
+                }
+            }
+        }
+    }
+    // The final basis itself is slightly infeasible: a path restarted from it (and once more
+    // from that one's end), the best point kept.
+    let mut vars = path.basis.vars.clone();
+    for _ in 0..RESTARTS {
+        if residual <= tolerance {
+            break;
+        }
+        let restart_cols = Columns { m: path.columns().m, d: covering_of_basis(path.columns(), &vars) };
+        let active = vars.iter().filter(|&&var| var >= n).count();
+        let restart_options = PathOptions {
+            max_pivots: path_options.max_pivots.min(n / 2 + 100).min(active + 100),
+            ..path_options
+        };
+        let mut restart = Path::new(&restart_cols, q_path, restart_options);
+        let restart_end = restart.restart(&vars);
+        report.restarts += 1;
+        report.pivots += restart.pivots;
+        report.lex_solves += restart.lex_solves;
+        report.refactorizations += restart.basis.refactorizations;
+        if restart_end != PathEnd::Solved {
+            break;
+        }
+        let _ = restart.polish(2);
+        let restarted = z_of(&restart);
+        let restarted_residual = residual_of(&restarted);
+        if restarted_residual < residual {
+            (z, residual) = (restarted, restarted_residual);
+            basis = Some(restart.basis.vars.clone());
+        }
+        vars.copy_from_slice(&restart.basis.vars);
+    }
+    Repaired { z, residual, basis }
 }
 
 /// The certificate of the ray a path ended on, in the original LCP's units: z = E z', the

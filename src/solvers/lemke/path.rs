@@ -42,6 +42,8 @@ pub(super) struct PathOptions {
     pub pivot_tolerance: f64,
     /// Updates between refactorizations (0: chosen from the sizes).
     pub refactor_interval: usize,
+    /// Harris's tolerance δ relative to max(1, ‖q‖∞) ([`super::LemkeOptions::degeneracy_tolerance`]).
+    pub degeneracy_tolerance: f64,
 }
 
 /// A pivoting path: its basis, basic values and counters.
@@ -98,7 +100,7 @@ impl<'a> Path<'a> {
             alpha: vec![0.0; n],
             pivots: 0,
             lex_solves: 0,
-            x_tol: 1e-11 * q_max.max(1.0),
+            x_tol: options.degeneracy_tolerance * q_max.max(1.0),
             refactor_interval: if options.refactor_interval > 0 { options.refactor_interval } else { 16 },
             refactor_soon: false,
             unit: vec![0.0; n],
@@ -110,6 +112,11 @@ impl<'a> Path<'a> {
             basis_hash: (0..n).fold(0, |h, var| h ^ key(var)),
             seen: std::collections::HashSet::new(),
         }
+    }
+
+    /// The columns the path pivots on.
+    pub fn columns(&self) -> &'a Columns<'a> {
+        self.cols
     }
 
     /// Runs the path to its end.
