@@ -36,6 +36,15 @@ pub fn crba<'d>(
         entries[k * nv + m] = value;
         entries[m * nv + k] = value;
     });
+    finite_mass_matrix(model, data)
+}
+
+/// `data.mass_matrix` if every entry is finite, else the error naming the joint of the first
+/// column with a non-finite entry.
+pub(super) fn finite_mass_matrix<'d>(
+    model: &Model,
+    data: &'d Data,
+) -> Result<&'d DMatrix<f64>, DynamicsError> {
     let m = &data.mass_matrix;
     if !all_finite(m.as_slice()) {
         let k = m.iter().position(|e| !e.is_finite()).unwrap_or(0);

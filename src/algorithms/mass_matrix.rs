@@ -7,7 +7,7 @@
 //! the world poses and Jacobian columns that contacts need.
 
 use super::check::check_q;
-use super::crba::all_finite;
+use super::crba::finite_mass_matrix;
 use crate::data::Data;
 use crate::error::DynamicsError;
 use crate::math::{Force, Mat3, Motion, SpatialInertia, Transform, Vec3};
@@ -41,16 +41,7 @@ pub fn mass_matrix<'d>(
         data.ycrb_body[i] = model.inertias[i];
     }
     composite_pass(model, data);
-    let m = &data.mass_matrix;
-    if !all_finite(m.as_slice()) {
-        let k = m.iter().position(|e| !e.is_finite()).unwrap_or(0);
-        let column = k / m.nrows().max(1);
-        return Err(DynamicsError::NonFiniteResult {
-            what: "mass matrix",
-            at: format!("joint `{}`", model.joint_name(model.dof_joint(column))),
-        });
-    }
-    Ok(m)
+    finite_mass_matrix(model, data)
 }
 
 /// The forces of [`Data::subtree_forces`] as six rows of nv (force x, y, z, moment x, y, z).
