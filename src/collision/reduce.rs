@@ -4,13 +4,17 @@
 //! Four well-spread points hold a resting box as firmly as the whole contact polygon does, and the
 //! constraint problem stays small.
 //!
-//! When at least three candidates touch (a gap within a tenth of the margin), the points are
-//! chosen among those alone. A convex hull of a lumpy mesh on the ground has dozens of vertices
+//! When at least three candidates touch (a gap within a tenth of the margin, now or at the end of
+//! the step at the two colliders' velocities: [`Candidate::predicted`]), the points are chosen
+//! among those alone. A convex hull of a lumpy mesh on the ground has dozens of vertices
 //! within a 2 cm margin, several of them penetrating: chosen by spread among all of them, the
 //! set holds the far rim 1–2 cm above the ground and drops the penetrating vertices between,
 //! and the body rocks on its deepest vertex and sinks. A pair with fewer touching points (a
 //! box landing on an edge) keeps its speculative points, which hold the rotation that closes
-//! them.
+//! them. A body tipping onto a face touches along one edge while the far edge is still up; the
+//! far edge closes within the step and counts as touching by its predicted gap, so the set spans
+//! both edges (chosen by the present gaps alone, the near edge held and the far one went 12 mm
+//! into a ragdoll's pelvis below in one 2 ms step).
 
 use crate::math::Vec3;
 
@@ -21,6 +25,9 @@ pub(crate) struct Candidate {
     pub point_b: Vec3,
     pub normal: Vec3,
     pub distance: f64,
+    /// The gap (m) expected at the end of the step from the two colliders' motions at its
+    /// start (`distance` when they are not known).
+    pub predicted: f64,
     pub feature: u64,
 }
 
@@ -31,8 +38,8 @@ pub const MAX_POINTS_PER_PAIR: usize = 4;
 const TOUCHING_SHARE_OF_MARGIN: f64 = 0.1;
 
 /// Reorders `points` so that its first `k ≤ 4` entries are the reduced set and returns `k`:
-/// among the touching candidates when at least three touch (gap at most a tenth of `margin`,
-/// m; module docs), else among all, [`spread`]'s choice.
+/// among the touching candidates when at least three touch (present or predicted gap at most a
+/// tenth of `margin`, m; module docs), else among all, [`spread`]'s choice.
 pub(crate) fn reduce(points: &mut [Candidate], margin: f64) -> usize {
     if points.len() <= MAX_POINTS_PER_PAIR {
         return points.len();
@@ -40,7 +47,7 @@ pub(crate) fn reduce(points: &mut [Candidate], margin: f64) -> usize {
     let touching_gap = TOUCHING_SHARE_OF_MARGIN * margin;
     let mut touching = 0;
     for i in 0..points.len() {
-        if points[i].distance <= touching_gap {
+        if points[i].distance.min(points[i].predicted) <= touching_gap {
             points.swap(touching, i);
             touching += 1;
         }
@@ -121,6 +128,7 @@ pub(crate) fn merge_to_patch(points: &mut [Candidate], kept: usize) -> usize {
             point_b: b * scale,
             normal: *normal,
             distance: *distance,
+            predicted: *distance,
             feature: *feature,
         };
     }
@@ -146,7 +154,33 @@ mod tests {
 
     fn at(x: f64, y: f64, d: f64) -> Candidate {
         let p = Vec3::new(x, y, 0.0);
-        Candidate { point_a: p, point_b: p, normal: Vec3::z(), distance: d, feature: 0 }
+        Candidate { point_a: p, point_b: p, normal: Vec3::z(), distance: d, predicted: d, feature: 0 }
+    }
+
+    /// A box tipping onto a face: four points touch along one edge, the far edge is 15 mm up
+    /// and closes by 20 mm in the step. Chosen among the touching points alone, the set would
+    /// hold only the near edge and the far edge would sink through; predicted to touch, the far
+    /// points join the pool and the spread set spans both edges.
+    #[test]
+    fn points_the_step_closes_count_as_touching() {
+        let mut near_edge_only = Vec::new();
+        let mut both = Vec::new();
+        for (pts, closing) in [(&mut near_edge_only, 0.0), (&mut both, 0.02)] {
+            for y in [-0.1, -0.05, 0.05, 0.1] {
+                pts.push(at(0.0, y, 0.0005));
+            }
+            for y in [-0.1, 0.1] {
+                let mut far = at(0.2, y, 0.015);
+                far.predicted = far.distance - closing;
+                pts.push(far);
+            }
+        }
+        let k = reduce(&mut near_edge_only, 0.02);
+        assert!(near_edge_only[..k].iter().all(|c| c.point_a.x == 0.0), "{:?}", &near_edge_only[..k]);
+        let k = reduce(&mut both, 0.02);
+        assert_eq!(k, 4);
+        assert!(both[..k].iter().any(|c| c.point_a.x == 0.2), "{:?}", &both[..k]);
+        assert!(both[..k].iter().any(|c| c.point_a.x == 0.0), "{:?}", &both[..k]);
     }
 
     #[test]

@@ -6,7 +6,7 @@ use super::broad_phase::SweepAndPrune;
 use super::convert::{from_pose, from_vector, to_pose, to_vector};
 use super::mesh::{MeshOptions, MissingMeshPolicy};
 use super::narrow_phase::{dispatch, pose_within, refresh_distances, PairCache};
-use super::reduce::{merge_to_patch, reduce, Candidate};
+use super::reduce::{merge_to_patch, reduce, Candidate, MAX_POINTS_PER_PAIR};
 use super::shape::{self, ShapeKind, ShapeSource};
 use crate::data::Data;
 use crate::error::CollisionError;
@@ -242,6 +242,10 @@ pub struct CollisionWorld {
     /// Per collider, how far (m) its points may travel in the next step, up to its radius: its
     /// pairs' margin grows by it ([`CollisionWorld::set_multibody_motions`]).
     reach: Vec<f64>,
+    /// Per collider, its motion over the next step as last set, swept or not
+    /// ([`CollisionWorld::set_multibody_motions`]): the manifold reduction counts a point that
+    /// this motion closes within the step as touching.
+    drift: Vec<Option<SweptMotion>>,
     sweep_diagnostics: Vec<SweepDiagnostic>,
     sweep_stats: SweepStats,
 }
@@ -543,6 +547,7 @@ impl CollisionWorld {
                     point_b: from_vector(pose_b * p.local_p2),
                     normal,
                     distance: p.dist,
+                    predicted: p.dist,
                     feature: (u64::from(p.fid1.0) | (u64::from(p.fid2.0) << 32))
                         ^ sub.wrapping_mul(0x9E37_79B9_7F4A_7C15),
                 });
@@ -556,6 +561,21 @@ impl CollisionWorld {
         }
         self.stats.touching_pairs += 1;
         self.stats.raw_points += self.candidates.len();
+        if self.candidates.len() > MAX_POINTS_PER_PAIR {
+            let (drift_a, drift_b) = (self.drift_of(a), self.drift_of(b));
+            if drift_a.is_some() || drift_b.is_some() {
+                let (origin_a, origin_b) =
+                    (from_vector(ca.world_pose.translation), from_vector(cb.world_pose.translation));
+                for c in &mut self.candidates {
+                    let rate_a =
+                        drift_a.map_or(0.0, |m| m.point_velocity(&origin_a, &c.point_a).dot(&c.normal));
+                    let rate_b =
+                        drift_b.map_or(0.0, |m| m.point_velocity(&origin_b, &c.point_b).dot(&c.normal));
+                    let h = drift_a.or(drift_b).map_or(0.0, |m| m.h);
+                    c.predicted = c.distance + h * (rate_a - rate_b);
+                }
+            }
+        }
         let mut kept = reduce(&mut self.candidates, self.options.margin);
         if ca.patch || cb.patch {
             kept = merge_to_patch(&mut self.candidates, kept);

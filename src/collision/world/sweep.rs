@@ -28,6 +28,14 @@ pub struct SweptMotion {
     pub h: f64,
 }
 
+impl SweptMotion {
+    /// Velocity (m/s, world axes) of the world point `point` carried by a collider whose shape
+    /// origin is at `origin` (m, world).
+    pub fn point_velocity(&self, origin: &Vec3, point: &Vec3) -> Vec3 {
+        self.linear + self.angular.cross(&(point - origin))
+    }
+}
+
 /// Why a sweep could not do what was asked, reported in the step's statistics
 /// ([`crate::world::StepStats::sweep_diagnostics`]); the step goes on with the contacts found.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -103,8 +111,9 @@ impl CollisionWorld {
     /// origin; bodies beyond the slice do not move): with `automatic`, a collider is swept
     /// when one of its points travels further than the contact margin in the step, and then
     /// its pairs' margin grows by how far its points travel (up to its radius: beyond, the
-    /// sweep finds the impact); whatever its speed it is swept when `always(body)`. Returns false
-    /// if the index is out of range.
+    /// sweep finds the impact); whatever its speed it is swept when `always(body)`. Every
+    /// collider's motion is kept for the manifold reduction, swept or not (which points the step
+    /// closes, [`crate::collision::reduce`]). Returns false if the index is out of range.
     pub fn set_multibody_motions(
         &mut self,
         multibody: usize,
@@ -122,6 +131,9 @@ impl CollisionWorld {
         if self.reach.len() < self.colliders.len() {
             self.reach.resize(self.colliders.len(), 0.0);
         }
+        if self.drift.len() < self.colliders.len() {
+            self.drift.resize(self.colliders.len(), None);
+        }
         let margin = self.options.margin;
         for &c in &self.multibodies[multibody].colliders {
             let collider = &self.colliders[c];
@@ -132,6 +144,7 @@ impl CollisionWorld {
             let Some(v) = velocities.get(body) else {
                 self.motions[c] = None;
                 self.reach[c] = 0.0;
+                self.drift[c] = None;
                 continue;
             };
             let origin = from_vector(collider.world_pose.translation);
@@ -139,6 +152,7 @@ impl CollisionWorld {
             let distance = travel(&motion, collider.radius);
             let swept = always(body) || (automatic && distance > margin);
             self.motions[c] = swept.then_some(motion);
+            self.drift[c] = Some(motion);
             // A collider that stays within the margin keeps the margin (and its pairs their
             // reused manifolds): resting bodies are not touched.
             let fast = automatic && distance > margin && distance.is_finite();
@@ -158,6 +172,13 @@ impl CollisionWorld {
     pub fn clear_motions(&mut self) {
         self.motions.iter_mut().for_each(|m| *m = None);
         self.reach.iter_mut().for_each(|r| *r = 0.0);
+        self.drift.iter_mut().for_each(|d| *d = None);
+    }
+
+    /// Collider `c`'s motion over the next step as last set, swept or not (None when its
+    /// multibody's velocities were not given).
+    pub(super) fn drift_of(&self, c: usize) -> Option<SweptMotion> {
+        self.drift.get(c).copied().flatten()
     }
 
     /// How far (m) collider `c`'s points may travel in the next step, as far as its pairs'

@@ -1,6 +1,7 @@
 //! Stage 3: the contacts of the step (broad phase, narrow phase and reduced manifolds in
 //! [`CollisionWorld::detect`]), with the colliders that move further than the contact margin
-//! in the step swept along their motion (continuous collision, docs/collision.md); a sleeping
+//! in the step swept along their motion (continuous collision, docs/collision.md) and every
+//! awake collider's motion given to the manifold reduction (which points the step closes); a sleeping
 //! multibody touched by an awake one wakes, and its kinematics are brought up to date for the
 //! rows.
 
@@ -29,7 +30,7 @@ pub(crate) fn run(
 ) -> Result<(), StepError> {
     for (i, b) in bodies.iter_mut().enumerate() {
         let forced = |body: usize| sweeps.always.contains(&(i, body));
-        if b.asleep || (!sweeps.continuous && !sweeps.always.iter().any(|&(m, _)| m == i)) {
+        if b.asleep {
             collision.set_multibody_motions(i, &[], h, false, |_| false);
             continue;
         }
