@@ -67,8 +67,11 @@ pub struct Data {
     /// Generalized acceleration from [`crate::algorithms::aba`] or
     /// [`crate::algorithms::forward_dynamics_crba`].
     pub ddq: DVector<f64>,
-    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`]. A
-    /// world's step does not write it: its CRBA fills the factorization's packed rows directly.
+    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`] or
+    /// [`crate::algorithms::mass_matrix`]; empty (0 × 0) until the first of them, which sizes it
+    /// nv × nv. A world's step does not write it (its CRBA fills the factorization's packed rows
+    /// directly), and a 2500-dof crowd read from one MJCF file would otherwise carry 50 MB of
+    /// zeros from its first page faults on.
     pub mass_matrix: DMatrix<f64>,
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).
@@ -120,7 +123,7 @@ impl Data {
             nle: DVector::zeros(nv),
             gravity_torque: DVector::zeros(nv),
             ddq: DVector::zeros(nv),
-            mass_matrix: DMatrix::zeros(nv, nv),
+            mass_matrix: DMatrix::zeros(0, 0),
             factor_inv_sqrt_d: DVector::zeros(nv),
             factor_row_coupled: vec![true; nv],
             factor_packed: vec![0.0; model.dof_path.len() + nv],
@@ -129,5 +132,15 @@ impl Data {
             kinetic_energy: 0.0,
             potential_energy: 0.0,
         }
+    }
+
+    /// `mass_matrix` sized nv × nv for `model` (zeros when it was not yet), for the algorithms
+    /// that write or read the dense M.
+    pub(crate) fn sized_mass_matrix(&mut self, model: &Model) -> &mut DMatrix<f64> {
+        let nv = model.nv();
+        if self.mass_matrix.shape() != (nv, nv) {
+            self.mass_matrix = DMatrix::zeros(nv, nv);
+        }
+        &mut self.mass_matrix
     }
 }

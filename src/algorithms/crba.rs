@@ -29,6 +29,7 @@ pub fn crba<'d>(
 ) -> Result<&'d DMatrix<f64>, DynamicsError> {
     check_q(model, q)?;
     kinematics_and_world_terms(model, data, q);
+    data.sized_mass_matrix(model);
     let nv = model.nv();
     composite_rigid_body_entries(model, data, |data, k, _, m, value| {
         // Column-major: (m, k) then (k, m).

@@ -26,6 +26,7 @@ pub fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<(), Dynamics
 pub(crate) fn pack_mass_matrix(model: &Model, data: &mut Data) {
     let n = model.nv();
     let (paths, path_start) = (&model.dof_path, &model.dof_path_start);
+    data.sized_mass_matrix(model);
     let m = data.mass_matrix.as_slice();
     for k in 0..n {
         let path = &paths[path_start[k]..path_start[k + 1]];

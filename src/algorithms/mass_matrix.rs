@@ -160,6 +160,7 @@ fn composite_pass(model: &Model, data: &mut Data) {
     if nv == 0 {
         return;
     }
+    data.sized_mass_matrix(model);
     let Data { x_pb, s, ycrb_body, subtree_forces, mass_matrix, .. } = data;
     let entries = mass_matrix.as_mut_slice();
     let mut forces = ForceRows::new(subtree_forces, nv);

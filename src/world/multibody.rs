@@ -460,7 +460,7 @@ fn has_constant_mass_matrix(model: &Model) -> bool {
 /// rotates them to world axes and back), so that structurally zero entries are exactly zero and
 /// the assembly skips them ([`Data::factor_row_coupled`]).
 fn constant_mass_matrix(model: &Model, data: &mut Data) {
-    data.mass_matrix.fill(0.0);
+    data.sized_mass_matrix(model).fill(0.0);
     for i in 1..model.nbodies() {
         let k = model.idx_v(i);
         let block = model.inertia(i).to_matrix();
