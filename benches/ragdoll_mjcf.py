@@ -9,7 +9,7 @@ Usage:
     python3 benches/ragdoll_mjcf.py --count 16 [--dt 0.016666666666666666] > /tmp/pile16.xml
 
 With `--count N` (N > 1), a pile as models/ragdoll_crowd.toml drops one: N ragdolls lying face
-down in T-pose in min(N, 4) columns (2 × 2, 1.9 m and 1.8 m apart), layers 0.35 m apart from
+down in T-pose in min(N, 4) columns (2 × 2, 1.9 m and 2.0 m apart: the T-pose spans 1.8 m), layers 0.35 m apart from
 0.45 m up, each shifted by up to 4 cm and spinning at 1 rad/s about a random axis; names get a
 prefix `rK_` per ragdoll.
 
@@ -187,7 +187,7 @@ def main():
             columns = min(args.count, 4)
             column, layer = k % columns, k // columns
             x = (column % 2 - 0.5) * 1.9 if columns > 1 else 0.0
-            y = (column // 2 - 0.5) * 1.8 if columns > 2 else 0.0
+            y = (column // 2 - 0.5) * 2.0 if columns > 2 else 0.0
             shift = rng.uniform(-0.04, 0.04, 2)
             pos = [x + shift[0], y + shift[1], 0.45 + 0.35 * layer]
             # Face down: the standing T-pose pitched by 90° about y.
