@@ -299,6 +299,27 @@ fn bench_world_applies_vehicle_commands_when_asked() {
     }
 }
 
+/// `bench world` reports what its timed episode answered as `simulate` does: the ragdoll's
+/// fall from step 0 (its scene's chain, pgs30 with the last answer accepted) has the same
+/// deepest penetration, steps above the tolerance, largest residual and islands in both.
+#[test]
+fn bench_world_reports_penetration_residuals_and_islands_as_simulate_does() {
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/ragdoll_fall.toml");
+    let scene = scene.display().to_string();
+    let run = |args: &[&str]| -> Value {
+        let out = gelenk(args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    // bench world turns sleeping off; the fall is awake for its first second anyway.
+    let bench = run(&["bench", "world", &scene, "--rounds", "1", "--steps", "500", "--json"]);
+    let simulate = run(&["simulate", &scene, "--duration", "1.0", "--json"]);
+    for key in ["max_penetration", "steps_above_tolerance", "max_residual", "max_islands", "largest_island"] {
+        assert_eq!(bench[key], simulate[key], "{key}: bench {} simulate {}", bench[key], simulate[key]);
+    }
+    assert!(bench["max_penetration"].as_f64().unwrap() > 0.0);
+}
+
 /// `simulate --json` prints the run's summary as `RunSummary` serializes itself, and `--out`
 /// writes the recorded states: the initial state and every fifth step (the scene's `[record]`).
 #[test]

@@ -221,6 +221,7 @@ fn bench_world(
     let (mut rows, mut fallbacks, mut iterations, mut solver_usage) =
         (0usize, 0usize, 0usize, std::collections::BTreeMap::new());
     let (mut builds, mut kept_rows) = (0, 0);
+    let mut quality = RunQuality::default();
     let load = || -> Result<BenchTarget, String> {
         let mut target = BenchTarget::load(path)?;
         let world = target.world();
@@ -257,6 +258,8 @@ fn bench_world(
         let mut phase = [0u64; 6];
         (rows, fallbacks, iterations) = (0, 0, 0);
         solver_usage.clear();
+        quality = RunQuality::default();
+        let tolerance = target.world().options().tolerance;
         let builds_before = target.world().problem_builds();
         let kept_before = target.world().contact_row_reuses();
         for _ in 0..steps {
@@ -272,6 +275,7 @@ fn bench_world(
             if stats.rows > 0 {
                 *solver_usage.entry(stats.solver).or_insert(0usize) += 1;
             }
+            quality.add(stats, tolerance);
         }
         builds = target.world().problem_builds() - builds_before;
         kept_rows = target.world().contact_row_reuses() - kept_before;
@@ -296,7 +300,10 @@ fn bench_world(
                    "phase_mean_us": phase_json, "max_rows": rows, "fallbacks": fallbacks,
                    "mean_iterations": iterations as f64 / steps.max(1) as f64,
                    "solver_usage": solver_usage, "problem_builds": builds,
-                   "contact_row_reuses": kept_rows})
+                   "contact_row_reuses": kept_rows, "max_penetration": quality.max_penetration,
+                   "steps_above_tolerance": quality.steps_above_tolerance,
+                   "max_residual": quality.max_residual, "max_islands": quality.max_islands,
+                   "largest_island": quality.largest_island})
         );
     } else {
         println!(
@@ -309,6 +316,38 @@ fn bench_world(
             "up to {rows} rows; solver use {solver_usage:?}; {fallbacks} fallbacks, {:.1} iterations per step, W built {builds} times (World::problem_builds) and contact rows kept on {kept_rows} steps (World::contact_row_reuses) in the last episode",
             iterations as f64 / steps.max(1) as f64
         );
+        println!(
+            "deepest penetration {:.2} mm; {} of {steps} steps above the tolerance (largest residual {:.1e} m/s); islands: up to {}, the largest {} rows",
+            quality.max_penetration * 1e3,
+            quality.steps_above_tolerance,
+            quality.max_residual,
+            quality.max_islands,
+            quality.largest_island
+        );
     }
     Ok(())
+}
+
+/// What the timed episode of `bench world` answered, as `gelenk simulate` reports it: the
+/// deepest penetration (m), the steps whose accepted answer is above the chain's tolerance and
+/// the largest residual (m/s), the most islands of one step and the most rows of one island.
+#[derive(Default)]
+struct RunQuality {
+    max_penetration: f64,
+    steps_above_tolerance: usize,
+    max_residual: f64,
+    max_islands: usize,
+    largest_island: usize,
+}
+
+impl RunQuality {
+    fn add(&mut self, stats: &gelenk::world::StepStats, tolerance: f64) {
+        self.max_penetration = self.max_penetration.max(stats.max_penetration);
+        if stats.rows > 0 {
+            self.steps_above_tolerance += usize::from(stats.residual > tolerance);
+            self.max_residual = self.max_residual.max(stats.residual);
+            self.max_islands = self.max_islands.max(stats.islands);
+            self.largest_island = self.largest_island.max(stats.largest_island);
+        }
+    }
 }
