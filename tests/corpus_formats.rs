@@ -121,9 +121,18 @@ fn bad_cbf_and_qps_files_are_typed_errors_naming_the_file_and_the_field() {
     );
     invalid(parse_cbf("VAR\n1 1\nF 2\n", path), "bad.cbf", "VAR: the cones hold 2 entries");
     invalid(parse_cbf("", path), "bad.cbf", "no VER section");
+    // A second CON after ACOORD would leave the entries outside the new rows (found by the fuzzer:
+    // solving it indexed past the rows).
+    invalid(parse_cbf(&format!("{cbf}\nCON\n1 1\nL= 1\n"), path), "bad.cbf", "a second CON section");
     let qps = qps_text("p", &qp_of(&problem).unwrap());
     let path = Path::new("bad.qps");
     invalid(parse_qps(&qps[..qps.len() / 2], path), "bad.qps", "no ENDATA");
+    // An entry of P that overflows to infinity (found by the fuzzer) is not a QP.
+    let quadobj = qps.find("QUADOBJ\n").unwrap() + "QUADOBJ\n".len();
+    let value_at = quadobj + qps[quadobj..].find('\n').unwrap();
+    let value_start = qps[..value_at].rfind(' ').unwrap() + 1;
+    let overflow = format!("{}5e308{}", &qps[..value_start], &qps[value_at..]);
+    invalid(parse_qps(&overflow, path), "bad.qps", "\"5e308\" is not a finite number");
     invalid(parse_qps(&qps.replacen(" g0 ", " nosuchrow ", 1), path), "bad.qps", "unknown row \"nosuchrow\"");
     invalid(
         parse_qps(&qps.replacen("FR bnd", "XX bnd", 1), path),

@@ -1,5 +1,6 @@
 //! Mutation fuzzing of every reader on the corpus in `tests/fuzz_corpus/` (see `fuzz_support` and
-//! `docs/reliability.md`): URDF, MJCF, scene TOML, states JSON and problem JSON. Each input must
+//! `docs/reliability.md`): URDF, MJCF, scene TOML, states JSON, problem JSON, and the corpus's
+//! CBF and QPS files (solved by clarabel when small, for CBF). Each input must
 //! end in a typed error or in a result whose numbers are all finite: the model's dynamics at its
 //! neutral configuration and a few world steps on a ground for URDF and MJCF, a short run for a
 //! scene, the dynamics on each state for states, every corpus solver for a problem. A panic, a
@@ -12,7 +13,9 @@ mod fuzz_support;
 
 use fuzz_support::{finite, fuzz, Verdict};
 use gelenk::collision::MeshOptions;
-use gelenk::io::problem::{problem_from_json, run_solver, CorpusSolver};
+use gelenk::io::problem::{
+    parse_cbf, parse_qps, problem_from_json, run_solver, solve_cbf_with_clarabel, CorpusSolver,
+};
 use gelenk::io::scene::RunOptions;
 use gelenk::math::Transform;
 use gelenk::model::Shape;
@@ -227,6 +230,64 @@ fn problem(input: &[u8]) -> Verdict {
     Ok(())
 }
 
+/// Tokens of CBF and QPS files: section keywords, huge counts and indices, cones, non-finite
+/// and overflowing numbers.
+const FORMAT_TOKENS: &[&str] = &[
+    "\nVAR\n4294967296 1\nF 4294967296\n",
+    "\nCON\n3 1\nQ 3\n",
+    "\nACOORD\n1\n0 0 nan\n",
+    "\nBCOORD\n1\n99999999 1\n",
+    "\nOBJACOORD\n2\n0 inf\n",
+    "L+ 1000000\n",
+    "QR 1\n",
+    "\nOBJSENSE\nMAX\n",
+    "\nROWS\n N obj\n E e0\n",
+    "\nCOLUMNS\n x0 obj 1e400\n",
+    "\nBOUNDS\n UP bnd x0 -1\n MI bnd x0\n",
+    "\nQUADOBJ\n x0 x1 -1e308\n",
+    "\nRHS\n rhs e0 NaN\n",
+    " x4294967296 ",
+    "\nENDATA\n",
+    "-0",
+    "1e-320",
+    "\u{0}",
+];
+
+/// A CBF file read, and, if it has at most 200 variables, solved by clarabel: a typed error or
+/// finite numbers.
+fn cbf(input: &[u8]) -> Verdict {
+    let text = String::from_utf8_lossy(input);
+    let Ok(file) = parse_cbf(&text, Path::new("problem.cbf")) else { return Ok(()) };
+    finite("objective", &file.objective.iter().map(|c| c.1).collect::<Vec<_>>())?;
+    finite("constraint matrix", &file.a.iter().map(|c| c.2).collect::<Vec<_>>())?;
+    finite("constraint constants", &file.b.iter().map(|c| c.1).collect::<Vec<_>>())?;
+    if file.variable_count() > 200 || file.constraint_count() > 400 {
+        return Ok(());
+    }
+    if let Ok((objective, x)) = solve_cbf_with_clarabel(&file) {
+        finite("clarabel's objective", &[objective])?;
+        finite("clarabel's x", &x)?;
+    }
+    Ok(())
+}
+
+/// A QPS file read: a typed error or a QP whose matrices and right-hand sides are finite (bounds
+/// may be infinite: no bound).
+fn qps(input: &[u8]) -> Verdict {
+    let text = String::from_utf8_lossy(input);
+    let Ok((_, qp)) = parse_qps(&text, Path::new("problem.qps")) else { return Ok(()) };
+    for (what, values) in [("P", qp.p.as_slice()), ("q", qp.q.as_slice()), ("G", qp.g.as_slice())] {
+        finite(what, values)?;
+    }
+    for (what, values) in [("h", qp.h.as_slice()), ("A", qp.a.as_slice()), ("b", qp.b.as_slice())] {
+        finite(what, values)?;
+    }
+    if qp.lb.iter().chain(qp.ub.iter()).any(|x| x.is_nan()) {
+        return Err("a NaN bound read as Ok".into());
+    }
+    Ok(())
+}
+
 #[test]
 fn fuzz_urdf() {
     assert!(fuzz("urdf", XML_TOKENS, CASE, urdf) > 0);
@@ -250,6 +311,16 @@ fn fuzz_states() {
 #[test]
 fn fuzz_problem() {
     assert!(fuzz("problem", JSON_TOKENS, CASE, problem) > 0);
+}
+
+#[test]
+fn fuzz_cbf() {
+    assert!(fuzz("cbf", FORMAT_TOKENS, CASE, cbf) > 0);
+}
+
+#[test]
+fn fuzz_qps() {
+    assert!(fuzz("qps", FORMAT_TOKENS, CASE, qps) > 0);
 }
 
 /// The harness itself finds what it is meant to find: a panicking target fails the test.

@@ -280,7 +280,14 @@ fn parse(text: &str) -> Result<CbfFile, String> {
         b: Vec::new(),
     };
     let (mut version, mut seen_var, mut seen_con) = (None, false, false);
+    // Each section at most once (CBF's rule): a second CON after ACOORD would leave entries
+    // outside the rows they were checked against.
+    let mut seen: Vec<&str> = Vec::new();
     while let Some(keyword) = lines.next() {
+        if seen.contains(&keyword) {
+            return Err(format!("line {}: a second {keyword} section", lines.line));
+        }
+        seen.push(keyword);
         match keyword {
             "VER" => {
                 let v = lines.need("VER")?;

@@ -116,11 +116,19 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
     let mut bounds: Vec<(String, usize, &str, Option<f64>)> = Vec::new();
     let mut quad: Vec<(usize, usize, f64)> = Vec::new();
     let mut ended = false;
+    // Bounds may be infinite (no bound); matrix entries and right-hand sides must be finite.
     let number = |x: &str, line: usize| -> Result<f64, String> {
         x.parse::<f64>()
             .ok()
             .filter(|v| !v.is_nan())
             .ok_or_else(|| format!("line {line}: \"{x}\" is not a number"))
+    };
+    let finite = |x: &str, line: usize| -> Result<f64, String> {
+        let value = number(x, line)?;
+        match value.is_finite() {
+            true => Ok(value),
+            false => Err(format!("line {line}: \"{x}\" is not a finite number")),
+        }
     };
     for (k, raw) in text.lines().enumerate() {
         let line = k + 1;
@@ -188,7 +196,7 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
                     column_entries.push(Vec::new());
                 }
                 for pair in f[1..].chunks(2) {
-                    column_entries[j].push((row(pair[0])?, number(pair[1], line)?));
+                    column_entries[j].push((row(pair[0])?, finite(pair[1], line)?));
                 }
             }
             Section::Rhs => {
@@ -198,7 +206,7 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
                     ));
                 }
                 for pair in f[1..].chunks(2) {
-                    rhs.push((row(pair[0])?, number(pair[1], line)?));
+                    rhs.push((row(pair[0])?, finite(pair[1], line)?));
                 }
             }
             Section::Bounds => {
@@ -218,7 +226,7 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
                 let [a, b, x] = f[..] else {
                     return Err(format!("line {line}: QUADOBJ needs two columns and a value"));
                 };
-                quad.push((column(a)?, column(b)?, number(x, line)?));
+                quad.push((column(a)?, column(b)?, finite(x, line)?));
             }
             Section::None => return Err(format!("line {line}: data outside a section")),
         }
@@ -227,6 +235,15 @@ fn parse(text: &str) -> Result<(String, QpForm), String> {
         return Err("no ENDATA: the file is truncated".into());
     }
     let n = columns.len();
+    // The QP is dense (qpsolvers' form): refuse before allocating what a short file of many
+    // names would ask for.
+    let entries = (n as u128) * (n as u128 + inequalities as u128 + equalities as u128);
+    if entries > QPS_MAX_DENSE_ENTRIES as u128 {
+        return Err(format!(
+            "{n} columns and {} rows make dense matrices of {entries} entries, over the reader's {QPS_MAX_DENSE_ENTRIES}",
+            inequalities + equalities
+        ));
+    }
     let mut qp = QpForm {
         p: DMatrix::zeros(n, n),
         q: DVector::zeros(n),
@@ -280,6 +297,10 @@ fn post_inc(x: &mut usize) -> usize {
     *x += 1;
     *x - 1
 }
+
+/// Most entries (P, G and A together, dense) a QPS file may ask for: 5·10⁷ (400 MB), far above
+/// the corpus's QPs (up to 1000 rows) and below what would exhaust memory.
+pub const QPS_MAX_DENSE_ENTRIES: usize = 50_000_000;
 
 /// Parses QPS text into its name and QP; `path` only names the source in errors. `G` rows are
 /// negated into `G x ≤ h`.
