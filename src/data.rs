@@ -67,11 +67,11 @@ pub struct Data {
     /// Generalized acceleration from [`crate::algorithms::aba`] or
     /// [`crate::algorithms::forward_dynamics_crba`].
     pub ddq: DVector<f64>,
-    /// Joint-space mass matrix `M(q)` (full, symmetric) from [`crate::algorithms::crba`] or
-    /// [`crate::algorithms::mass_matrix`]; empty (0 × 0) until the first of them, which sizes it
-    /// nv × nv. A world's step does not write it (its CRBA fills the factorization's packed rows
-    /// directly), and a 2500-dof crowd read from one MJCF file would otherwise carry 50 MB of
-    /// zeros from its first page faults on.
+    /// Joint-space mass matrix `M(q)` (full, symmetric, nv × nv) from
+    /// [`crate::algorithms::crba`] or [`crate::algorithms::mass_matrix`]. A world's multibodies
+    /// start with it empty (0 × 0, [`Data::without_dense_mass_matrix`]): their steps factor M
+    /// from its packed rows and never form it, and a 2500-dof crowd read from one MJCF file
+    /// would otherwise carry 50 MB of zeros; the first call that writes it sizes it.
     pub mass_matrix: DMatrix<f64>,
     /// `1/√D_kk` per dof, from [`crate::algorithms::factor_mass_matrix`] with the factor (the
     /// row scaling of the constraint assembly needs it for every row).
@@ -98,7 +98,18 @@ pub struct Data {
 impl Data {
     /// Allocates every buffer for `model`.
     pub fn new(model: &Model) -> Self {
+        Self::allocate(model, true)
+    }
+
+    /// Every buffer for `model` but the dense mass matrix, left empty (0 × 0) until an algorithm
+    /// that writes it is called (a world's multibodies: their steps never form it).
+    pub fn without_dense_mass_matrix(model: &Model) -> Self {
+        Self::allocate(model, false)
+    }
+
+    fn allocate(model: &Model, dense_mass_matrix: bool) -> Self {
         let (n, nv) = (model.nbodies(), model.nv());
+        let m_size = if dense_mass_matrix { nv } else { 0 };
         Self {
             x_pb: vec![Transform::identity(); n],
             x_wb: vec![Transform::identity(); n],
@@ -123,7 +134,7 @@ impl Data {
             nle: DVector::zeros(nv),
             gravity_torque: DVector::zeros(nv),
             ddq: DVector::zeros(nv),
-            mass_matrix: DMatrix::zeros(0, 0),
+            mass_matrix: DMatrix::zeros(m_size, m_size),
             factor_inv_sqrt_d: DVector::zeros(nv),
             factor_row_coupled: vec![true; nv],
             factor_packed: vec![0.0; model.dof_path.len() + nv],

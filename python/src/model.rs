@@ -267,8 +267,7 @@ impl PyData {
     fn new(model: &Bound<'_, PyModel>) -> Self {
         Self::for_model(&model.get().model)
     }
-    /// The mass matrix M(q) of the last `crba` or `mass_matrix` (nv × nv, symmetric; 0 × 0
-    /// before the first).
+    /// The mass matrix M(q) of the last `crba` or `mass_matrix` (nv × nv, symmetric).
     #[getter]
     fn mass_matrix<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray2<f64>> {
         crate::arrays::to_py2(py, &self.data.mass_matrix)

@@ -164,7 +164,7 @@ fn propagate_world_velocities(model: &Model, data: &Data, v: &[f64], out: &mut [
 impl Multibody {
     pub(crate) fn new(model: Model) -> Self {
         let nv = model.nv();
-        let data = Data::new(&model);
+        let data = Data::without_dense_mass_matrix(&model);
         let kept_factor = KeptFactor::new(&model, &data);
         let state = State::new(&model);
         let nb = model.nbodies();
