@@ -407,11 +407,11 @@ fn lemke_and_clarabel_agree_on_frictionless_contacts() {
 
 #[test]
 fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
-    // models/pile.toml at step 300 (the benchmark's 2000-variable LCP, about 200 contacts):
-    // the answer's basic values are refined with residuals in double-double arithmetic, so the
-    // impulses certify far below the world's 1e-8 m/s, where the dissipation gap of contacts
-    // with the smallest normal impulses (per unit of their friction bound) amplifies any
-    // inaccuracy of the basic values.
+    // models/pile.toml at step 300 (the benchmark's 2000-variable LCP, about 200 contacts, its
+    // rows softened by the scene's `softness`, R = 0.02 A_ii): the answer's basic values are
+    // refined with residuals in double-double arithmetic, so the impulses certify far below the
+    // world's 1e-8 m/s, where the dissipation gap of contacts with the smallest normal impulses
+    // (per unit of their friction bound) amplifies any inaccuracy of the basic values.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pile.toml");
     let mut world = gelenk::io::scene::load_file(&path).unwrap().world;
     for _ in 0..=300 {
@@ -419,6 +419,7 @@ fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
     }
     let problem = world.problem().clone();
     assert!(lcp_of(&problem, 8).q.len() >= 1500, "a pile LCP of {} variables", lcp_of(&problem, 8).q.len());
+    assert!(problem.regularization.iter().all(|&r| r > 0.0), "every row of the pile is softened");
     let (_, r, pivots) = lemke_certified(&problem);
     assert!(r <= 1e-9, "certified residual {r:e} m/s after {pivots} pivots");
 }
