@@ -370,10 +370,8 @@ fn a_pyramid_whose_bases_meet_rounding_noise_is_answered_at_every_step() {
     // singular to working precision (its values jump from ≥ −5e-10 to −0.13 at the next
     // refactorization) and the path ends on a ray that no infeasibility explains (it meets M
     // and q only to 3e-4). The pivot tolerance (1e-7 of the column) keeps the paths off such
-    // entries, a path whose values jump so is dropped at once for the next covering vector,
-    // and a ray near a solution is completed into a basis and repaired: every step is
-    // answered, the top box still, with at most a few steps accepted slightly above the
-    // world's 1e-8 m/s (answers at the pyramid's most degenerate vertices).
+    // entries: every step is answered, the top box still, with at most a few steps accepted
+    // slightly above the world's 1e-8 m/s (answers at the pyramid's most degenerate vertices).
     let (mut w, top) = box_pyramid(10, 0.0015, 1.0 / 60.0);
     let tolerance = w.options().tolerance;
     let start = w.multibody(top).state.q.fixed_rows::<3>(0).into_owned();

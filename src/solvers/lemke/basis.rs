@@ -62,8 +62,6 @@ pub(super) struct Basis {
     small: Vec<f64>,
     /// Refactorizations done.
     pub refactorizations: usize,
-    /// min |U_ii| / max |U_ii| of the last factorization.
-    pub pivot_ratio: f64,
 }
 
 /// Why a refactorization failed: B_N's LU has a pivot this small relative to its largest.
@@ -107,7 +105,6 @@ impl Basis {
             work_by_position: vec![0.0; n],
             small: vec![0.0; n],
             refactorizations: 0,
-            pivot_ratio: 1.0,
         }
     }
 
@@ -333,7 +330,6 @@ impl Basis {
             largest = largest.max(u);
         }
         let ratio = if largest > 0.0 { smallest / largest } else { 0.0 };
-        self.pivot_ratio = ratio;
         // NaN fails this test too.
         if ratio > 1e-15 {
             Ok(())

@@ -11,9 +11,8 @@
 //!   every row and column of M near unit size; the unscaled problem and other covering vectors
 //!   are tried when a path fails, and seeded pseudo-random covering vectors when none of those
 //!   leaves an answer.
-//! - A pivot must exceed 1e-7 of its column (rounding of ill-conditioned bases passes for
-//!   pivots below that), and a path whose basic values jump far below zero at a
-//!   refactorization (its basis singular to working precision) is dropped there.
+//! - A pivot must exceed 1e-7 of its column: rounding of ill-conditioned bases passes for
+//!   pivots below that, and a pivot on rounding makes the basis singular.
 //! - The answer is verified on the original LCP; one that misses the tolerance is polished by a
 //!   fresh factorization and iterative refinement of the final basis. If the basis itself is
 //!   slightly infeasible (basic values some 1e-9 below zero after hundreds of degenerate
@@ -64,8 +63,8 @@ pub struct LemkeOptions {
     /// ill-conditioned, and entries that are zero in exact arithmetic come out of B⁻¹a at
     /// 1e-9 to 1e-7 of the column's largest: a pivot on one makes the basis singular to working
     /// precision, its values jump at the next refactorization (by 0.1 and more on a q of 0.16)
-    /// and the path ends on a false ray. 1e-7 leaves most such entries out; a path that takes
-    /// one all the same is dropped at that refactorization for the next covering vector.
+    /// and the path ends on a false ray. 1e-7 leaves most such entries out; the paths that
+    /// take one all the same end early, and the next covering vector is tried.
     pub pivot_tolerance: f64,
     /// Accepted complementarity residual max |min(z_i, w_i)| relative to max(1, ‖q‖∞).
     pub tolerance: f64,

@@ -29,21 +29,9 @@ pub(super) enum PathEnd {
     PivotLimit,
     /// A basis came back (rounding defeated the anti-cycling rule): the path would cycle.
     Cycle,
-    /// The basis is singular to working precision: a refactorization found its LU singular,
-    /// or the values the fresh factorization gives fall far below zero where the updated
-    /// ones were feasible ([`LOST`]), the mark of a pivot on an entry that is zero in exact
-    /// arithmetic. The path is lost: its values are noise from there on.
+    /// A refactorization found the basis singular.
     Singular(Singular),
 }
-
-/// How far below zero (in units of Harris's tolerance δ) a basic value may fall at a
-/// refactorization, where the updated values were above it, before the path counts as lost
-/// ([`PathEnd::Singular`]). Refactorizations of a sound basis change the values by rounding
-/// (1e-12 of them and less), and a path that overshot zero by a few δ over many degenerate
-/// pivots still ends near its answer; on bases made singular by a pivot on rounding noise the
-/// values jump by 1e-4 to 1e5 of ‖q‖, after which the path ends on a false ray or a point far
-/// from any solution, only later and at more cost.
-const LOST: f64 = 1e4;
 
 /// Tolerances and limits of a path.
 #[derive(Clone, Copy, Debug)]
@@ -194,13 +182,8 @@ impl<'a> Path<'a> {
                 return PathEnd::Cycle;
             }
             if self.refactor_soon || self.basis.updates() >= self.refactor_interval {
-                let floor = -LOST * self.x_tol;
-                let feasible = self.lowest_value() >= floor;
                 if let Err(singular) = self.refactor() {
                     return PathEnd::Singular(singular);
-                }
-                if feasible && self.lowest_value() < floor {
-                    return PathEnd::Singular(Singular { ratio: self.basis.pivot_ratio });
                 }
             }
             let entering = if leaving < n { leaving + n } else { leaving - n };
@@ -210,11 +193,6 @@ impl<'a> Path<'a> {
                 None => return PathEnd::Ray { entering },
             }
         }
-    }
-
-    /// The smallest basic value (0 if none is negative).
-    fn lowest_value(&self) -> f64 {
-        self.x.iter().fold(0.0f64, |m, &v| m.min(v))
     }
 
     /// Factorizes the basis anew, recomputes the basic values from q and picks the next
