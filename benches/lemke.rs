@@ -3,7 +3,12 @@
 //! - `stack10`, step 29: the built-in scene of `gelenk export-problems stack10 --steps 30 --only
 //!   29` (ten boxes, 40 contacts, an 8-facet pyramid: a 400-variable LCP);
 //! - `pile`, step 300: `models/pile.toml` (100 boxes and balls dropped onto a plane, stepped by
-//!   its own PGS chain; about 200 contacts at that step, a 2000-variable LCP);
+//!   its own chain, Newton's method then clarabel; about 200 contacts at that step, a
+//!   2000-variable LCP). The scene's rows are softened (R = 0.02 A_ii), which makes M positive
+//!   definite on the normal rows but leaves the pyramid's friction rows and their
+//!   complementarity as they are: the path takes as many pivots as the same pile's
+//!   zero-compliance LCP (some 600 to 700), and the pyramid below is the degenerate,
+//!   zero-compliance case;
 //! - `pyramid10`, step 100: the corpus scene `pyramid10-dt60` (the stability report's pyramid of
 //!   55 boxes at 1/60 s, stepped by Newton's method and clarabel; some 470 contacts, a
 //!   4700-variable LCP whose degenerate vertices, four coplanar corners under every box, tie

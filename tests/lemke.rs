@@ -6,8 +6,10 @@
 //! heavy box on a light one (mass ratio 1:1000), a 400-variable stack of ten boxes and every step
 //! of the ten-box stack of the hard cases at each time step of the stability table are solved to
 //! residuals certified by the shared `solvers::residuals`, and so is a twenty-box stack's LCP
-//! whose paths end on slightly infeasible bases, and every step of six seconds of the 55-box
-//! pyramid at 1/60 s, mostly from the last step's basis; the 2000-variable pile LCP of the benchmark
+//! whose paths end on slightly infeasible bases, every step of six seconds of the 55-box
+//! pyramid at 1/60 s, mostly from the last step's basis, and every step of the same pyramid
+//! with 1.5 mm gaps, whose bases turn ill-conditioned enough that rounding noise would pass
+//! for pivots; the 2000-variable (softened) pile LCP of the benchmark
 //! certifies far below the world's tolerance; a solve warm-started from the last basis or from
 //! a basis read from impulses certifies like a cold one, supports the stack with the same
 //! normal impulse and pivots less, and so does one on the same rows with the contacts in another
@@ -316,6 +318,28 @@ fn every_step_of_the_ten_box_stack_is_solved_at_every_time_step() {
     }
 }
 
+/// A pyramid of 0.1 m cubes of 1 kg on a plane, `base` boxes in the bottom row and `gap` (m)
+/// between the boxes of a row, stepped at `dt` by Lemke alone as the stability report sets it;
+/// returns the world and the top box.
+fn box_pyramid(base: usize, gap: f64, dt: f64) -> (World, usize) {
+    let mut w = World::new(options(&Setting::new(SolverKind::Lemke { facets: 8 }, dt)));
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+    let side = 0.1;
+    let mut top = 0;
+    for row in 0..base {
+        for k in 0..base - row {
+            let name = format!("box{row}_{k}");
+            let size = Vec3::repeat(side);
+            let model = free_body(&name, Shape::Box { size }, RigidInertia::solid_box(1.0, size));
+            top = w.add_multibody(&name, model, &MeshOptions::default()).unwrap();
+            let q = &mut w.multibody_mut(top).state.q;
+            q[0] = (k as f64 - (base - 1 - row) as f64 / 2.0) * (side + gap);
+            q[2] = side / 2.0 + side * row as f64;
+        }
+    }
+    (w, top)
+}
+
 #[test]
 fn the_box_pyramid_stands_on_lemke_alone_for_six_seconds() {
     // The hard case `pyramid10` (55 boxes of 0.1 m, base 10, 2 mm apart; some 490 contacts,
@@ -323,21 +347,7 @@ fn the_box_pyramid_stands_on_lemke_alone_for_six_seconds() {
     // contact's eight friction facets are degenerate) at 1/60 s with Lemke alone, as the
     // stability report runs it: every step solved, the top box still, and the steps answered
     // from the last step's basis (a path from the identity costs hundreds of pivots here).
-    let mut w = World::new(options(&Setting::new(SolverKind::Lemke { facets: 8 }, 1.0 / 60.0)));
-    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
-    let (side, gap) = (0.1, 0.002);
-    let mut top = 0;
-    for row in 0..10 {
-        for k in 0..10 - row {
-            let name = format!("box{row}_{k}");
-            let size = Vec3::repeat(side);
-            let model = free_body(&name, Shape::Box { size }, RigidInertia::solid_box(1.0, size));
-            top = w.add_multibody(&name, model, &MeshOptions::default()).unwrap();
-            let q = &mut w.multibody_mut(top).state.q;
-            q[0] = (k as f64 - (9 - row) as f64 / 2.0) * (side + gap);
-            q[2] = side / 2.0 + side * row as f64;
-        }
-    }
+    let (mut w, top) = box_pyramid(10, 0.002, 1.0 / 60.0);
     let start = w.multibody(top).state.q.fixed_rows::<3>(0).into_owned();
     let (mut pivots, mut most_contacts) = (0, 0);
     let steps = 360;
@@ -350,6 +360,32 @@ fn the_box_pyramid_stands_on_lemke_alone_for_six_seconds() {
     assert!(most_contacts >= 400, "{most_contacts} contacts at most");
     assert!(drift < 1e-3, "the top box moved {drift} m");
     assert!(pivots < 10 * steps, "{pivots} pivots in {steps} steps");
+}
+
+#[test]
+fn a_pyramid_whose_bases_meet_rounding_noise_is_answered_at_every_step() {
+    // The 55-box pyramid with 1.5 mm between the boxes of a row at 1/60 s, Lemke alone. By
+    // step 262 its LCP's bases are so ill-conditioned that entries of B⁻¹a which are zero in
+    // exact arithmetic come out at 1e-9 to 1e-7 of the column: a pivot on one makes the basis
+    // singular to working precision (its values jump from ≥ −5e-10 to −0.13 at the next
+    // refactorization) and the path ends on a ray that no infeasibility explains (it meets M
+    // and q only to 3e-4). The pivot tolerance (1e-7 of the column) keeps the paths off such
+    // entries: every step is answered, the top box still, with at most a few steps accepted
+    // slightly above the world's 1e-8 m/s (answers at the pyramid's most degenerate vertices).
+    let (mut w, top) = box_pyramid(10, 0.0015, 1.0 / 60.0);
+    let tolerance = w.options().tolerance;
+    let start = w.multibody(top).state.q.fixed_rows::<3>(0).into_owned();
+    let (mut above, mut worst) = (0, 0.0f64);
+    let steps = 280;
+    for step in 0..steps {
+        let stats = w.step().unwrap_or_else(|e| panic!("step {step}: {e}"));
+        above += usize::from(stats.residual > tolerance);
+        worst = worst.max(stats.residual);
+    }
+    let drift = (w.multibody(top).state.q.fixed_rows::<3>(0) - start).norm();
+    assert!(drift < 1e-6, "the top box moved {drift} m");
+    assert!(above <= steps / 50, "{above} of {steps} steps above {tolerance:e} m/s");
+    assert!(worst <= 1e-7, "largest certified residual {worst:e} m/s");
 }
 
 #[test]
@@ -407,11 +443,11 @@ fn lemke_and_clarabel_agree_on_frictionless_contacts() {
 
 #[test]
 fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
-    // models/pile.toml at step 300 (the benchmark's 2000-variable LCP, about 200 contacts):
-    // the answer's basic values are refined with residuals in double-double arithmetic, so the
-    // impulses certify far below the world's 1e-8 m/s, where the dissipation gap of contacts
-    // with the smallest normal impulses (per unit of their friction bound) amplifies any
-    // inaccuracy of the basic values.
+    // models/pile.toml at step 300 (the benchmark's 2000-variable LCP, about 200 contacts, its
+    // rows softened by the scene's `softness`, R = 0.02 A_ii): the answer's basic values are
+    // refined with residuals in double-double arithmetic, so the impulses certify far below the
+    // world's 1e-8 m/s, where the dissipation gap of contacts with the smallest normal impulses
+    // (per unit of their friction bound) amplifies any inaccuracy of the basic values.
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models/pile.toml");
     let mut world = gelenk::io::scene::load_file(&path).unwrap().world;
     for _ in 0..=300 {
@@ -419,6 +455,7 @@ fn the_pile_lcp_answer_certifies_at_the_world_tolerance() {
     }
     let problem = world.problem().clone();
     assert!(lcp_of(&problem, 8).q.len() >= 1500, "a pile LCP of {} variables", lcp_of(&problem, 8).q.len());
+    assert!(problem.regularization.iter().all(|&r| r > 0.0), "every row of the pile is softened");
     let (_, r, pivots) = lemke_certified(&problem);
     assert!(r <= 1e-9, "certified residual {r:e} m/s after {pivots} pivots");
 }

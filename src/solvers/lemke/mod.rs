@@ -9,7 +9,10 @@
 //! - Tolerances are scaled: pivots relative to the entering column, degeneracy relative to q.
 //! - The LCP is equilibrated (powers of two, [`scaling`]) so that a 1000:1 mass ratio leaves
 //!   every row and column of M near unit size; the unscaled problem and other covering vectors
-//!   are tried when a path fails.
+//!   are tried when a path fails, and seeded pseudo-random covering vectors when none of those
+//!   leaves an answer.
+//! - A pivot must exceed 1e-7 of its column: rounding of ill-conditioned bases passes for
+//!   pivots below that, and a pivot on rounding makes the basis singular.
 //! - The answer is verified on the original LCP; one that misses the tolerance is polished by a
 //!   fresh factorization and iterative refinement of the final basis. If the basis itself is
 //!   slightly infeasible (basic values some 1e-9 below zero after hundreds of degenerate
@@ -55,7 +58,13 @@ pub struct LemkeOptions {
     /// Paths from a given basis (a warm start, a restart) get half the size + 100.
     pub max_pivots: usize,
     /// Pivot tolerance relative to the largest entry of the entering column B⁻¹a (an entry
-    /// must exceed it to pivot).
+    /// must exceed it to pivot). On the zero-compliance LCPs of box pyramids (four coplanar
+    /// corners under every box, eight friction facets spanning a plane) the bases grow
+    /// ill-conditioned, and entries that are zero in exact arithmetic come out of B⁻¹a at
+    /// 1e-9 to 1e-7 of the column's largest: a pivot on one makes the basis singular to working
+    /// precision, its values jump at the next refactorization (by 0.1 and more on a q of 0.16)
+    /// and the path ends on a false ray. 1e-7 leaves most such entries out; the paths that
+    /// take one all the same end early, and the next covering vector is tried.
     pub pivot_tolerance: f64,
     /// Accepted complementarity residual max |min(z_i, w_i)| relative to max(1, ‖q‖∞).
     pub tolerance: f64,
@@ -78,7 +87,7 @@ impl Default for LemkeOptions {
     fn default() -> Self {
         Self {
             max_pivots: 0,
-            pivot_tolerance: 1e-9,
+            pivot_tolerance: 1e-7,
             tolerance: 1e-9,
             refactor_interval: 0,
             degeneracy_tolerance: 2.5e-10,
@@ -136,13 +145,21 @@ const RESTARTS: usize = 2;
 const SWAPS: usize = 16;
 
 /// The paths tried in order: (equilibrated, covering vector). The covering vectors are in the
-/// units of the LCP the path runs on.
-const ATTEMPTS: [(bool, Covering); 5] = [
+/// units of the LCP the path runs on. The pseudo-random ones (seeded: the same problem always
+/// takes the same paths) come last, tried only when no earlier path left an answer (within the
+/// tolerance or not), for the LCPs whose fixed paths all end on rounding: on
+/// the degenerate LCPs of box pyramids each path reaches a solution or not depending on
+/// which ties rounding decides, and a path with other ties, not a repeat of the same one, is
+/// what succeeds (as PATH restarts from a perturbed point; Dirkse & Ferris 1995).
+const ATTEMPTS: [(bool, Covering); 8] = [
     (true, Covering::Ones),
     (true, Covering::Golden),
     (false, Covering::Ones),
     (false, Covering::Golden),
     (true, Covering::Diagonal),
+    (true, Covering::Random(1)),
+    (true, Covering::Random(2)),
+    (true, Covering::Random(3)),
 ];
 
 /// A covering vector d > 0.
@@ -154,6 +171,8 @@ enum Covering {
     Golden,
     /// d_i = |M_ii|, at least 1e-3 max |M|.
     Diagonal,
+    /// d_i in [1, 2), pseudo-random from the seed (SplitMix64).
+    Random(u64),
 }
 
 impl Covering {
@@ -162,6 +181,7 @@ impl Covering {
             Covering::Ones => "ones",
             Covering::Golden => "golden",
             Covering::Diagonal => "diagonal",
+            Covering::Random(_) => "random",
         }
     }
 
@@ -176,6 +196,19 @@ impl Covering {
                     (0..n).map(|i| (scaling.row[i] * m.diagonal(i) * scaling.col[i]).abs()).collect();
                 let floor = 1e-3 * diagonal.iter().fold(0.0f64, |a, &x| a.max(x));
                 diagonal.into_iter().map(|x| x.max(floor).max(f64::MIN_POSITIVE)).collect()
+            }
+            Covering::Random(seed) => {
+                let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+                (0..n)
+                    .map(|_| {
+                        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+                        let mut z = state;
+                        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+                        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+                        z ^= z >> 31;
+                        1.0 + (z >> 11) as f64 / (1u64 << 53) as f64
+                    })
+                    .collect()
             }
         }
     }
@@ -413,6 +446,9 @@ fn solve_sparse(
     for (scaled, covering) in ATTEMPTS {
         if !scaled && equilibrated.scaling.is_identity() {
             continue; // the same path as the equilibrated one
+        }
+        if matches!(covering, Covering::Random(_)) && best.is_some() {
+            break; // an answer to hand on (above the tolerance): the random paths are for none
         }
         let scaling = if scaled { &equilibrated.scaling } else { &identity };
         let cols = Columns {

@@ -432,6 +432,12 @@ impl<'a> Path<'a> {
         if self.basis.updates() > 0 {
             self.refactor()?;
         }
+        self.refine(steps);
+        Ok(())
+    }
+
+    /// `steps` rounds of the refinement of [`Self::polish`] on the current factorization.
+    fn refine(&mut self, steps: usize) {
         let n = self.cols.n();
         let (mut high, mut low) = (vec![0.0; n], vec![0.0; n]);
         let mut correction = vec![0.0; n];
@@ -464,7 +470,6 @@ impl<'a> Path<'a> {
                 *x += c;
             }
         }
-        Ok(())
     }
 }
 
