@@ -25,8 +25,9 @@ impl MjcfScene {
 
     /// A world with `options` (usually [`MjcfScene::world_options`]) holding the colliding static
     /// geoms (material 0) and the model as one multibody named like it, at [`MjcfScene::q0`] and
-    /// at rest. Self-collision stays off, and `<contact><exclude>` and `<flag contact>` are not
-    /// applied: the scenes this serves rest their bodies on static geometry.
+    /// at rest. Its bodies collide with each other as MuJoCo's do by default: every pair but a
+    /// body and its parent (the world's filter of bodies joined by a joint); `<contact><exclude>`,
+    /// `<flag contact>` and contype/conaffinity masks other than both 0 are not applied.
     pub fn into_world(self, options: WorldOptions) -> Result<World, StepError> {
         let mut world = World::new(options);
         for s in self.statics.iter().filter(|s| s.collides) {
@@ -34,6 +35,11 @@ impl MjcfScene {
         }
         let name = self.model.name().to_string();
         let index = world.add_multibody(&name, self.model, &MeshOptions::default())?;
+        // MuJoCo collides every pair of geoms that may (contype/conaffinity) but those of a body
+        // and its parent: the file's bodies are one multibody here, so its self-collision is on
+        // (the world skips bodies joined by a joint, as MuJoCo's parent filter does). Without it
+        // a pile of humanoids in one file falls through itself.
+        world.set_self_collision(index, true)?;
         world.multibody_mut(index).state.q.copy_from(&self.q0);
         Ok(world)
     }
@@ -76,5 +82,27 @@ mod tests {
             .map(|c| c.name())
             .collect();
         assert_eq!(statics, ["world_geom0"]);
+    }
+
+    /// Two free boxes dropped one above the other in one file: the upper one lands on the lower
+    /// (the file's bodies collide with each other, as in MuJoCo), it does not pass through it.
+    #[test]
+    fn the_bodies_of_one_file_collide_with_each_other() {
+        let scene = crate::io::mjcf::load_str(
+            r#"<mujoco model="stack"><worldbody><geom type="plane" size="1 1 0.1"/>
+                 <body name="low" pos="0 0 0.1"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
+                 <body name="high" pos="0 0 0.35"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
+               </worldbody></mujoco>"#,
+        )
+        .unwrap();
+        let options = scene.world_options();
+        let mut world = scene.into_world(options).unwrap();
+        for _ in 0..500 {
+            world.step().unwrap();
+        }
+        let q = &world.multibody(0).state.q;
+        let (low, high) = (q[2], q[9]);
+        assert!((low - 0.1).abs() < 2e-3, "lower box at {low} m");
+        assert!((high - 0.3).abs() < 2e-3, "upper box at {high} m: it must rest on the lower one");
     }
 }
