@@ -217,6 +217,9 @@ pub struct CollisionStats {
 #[derive(Clone, Debug)]
 struct MultibodyEntry {
     parents: Vec<usize>,
+    /// Per body, the child of the root its branch hangs from (0 for the root): bodies of two
+    /// such trees (several free bodies in one model, as an MJCF file's bodies) always collide.
+    trees: Vec<usize>,
     self_collision: bool,
     asleep: bool,
     colliders: Vec<usize>,
@@ -284,8 +287,15 @@ impl CollisionWorld {
         }
         let first = self.colliders.len();
         self.colliders.extend(new);
+        let parents: Vec<usize> = (0..model.nbodies()).map(|i| model.parent(i)).collect();
+        let mut trees = vec![0; parents.len()];
+        for i in 1..parents.len() {
+            // Parents come before their children.
+            trees[i] = if parents[i] == 0 { i } else { trees[parents[i]] };
+        }
         self.multibodies.push(MultibodyEntry {
-            parents: (0..model.nbodies()).map(|i| model.parent(i)).collect(),
+            parents,
+            trees,
             self_collision: false,
             asleep: false,
             colliders: (first..self.colliders.len()).collect(),
@@ -350,8 +360,9 @@ impl CollisionWorld {
         Ok(self.colliders.len() - 1)
     }
 
-    /// Turns collisions between bodies of the same multibody on or off (joined bodies stay
-    /// excluded unless [`CollisionOptions::collide_joined_bodies`]).
+    /// Turns collisions between bodies of one tree of the same multibody on or off (joined bodies
+    /// stay excluded unless [`CollisionOptions::collide_joined_bodies`]); bodies of two trees on
+    /// its root (several free bodies in one model) collide either way.
     pub fn set_self_collision(&mut self, multibody: usize, on: bool) -> Result<(), CollisionError> {
         let count = self.multibodies.len();
         let entry = self.multibodies.get_mut(multibody).ok_or(CollisionError::IndexOutOfRange {
@@ -669,8 +680,8 @@ fn make_collider(
 }
 
 /// The filtering rules: never static or sleeping against static or sleeping; never two colliders of one body; within
-/// a multibody only with self-collision on, and bodies joined by a joint only if asked; groups
-/// and masks always.
+/// one tree of a multibody only with self-collision on (two trees on its root always), and bodies
+/// joined by a joint only if asked; groups and masks always.
 fn may_collide(
     a: &Collider,
     b: &Collider,
@@ -692,7 +703,7 @@ fn may_collide(
     {
         if ma == mb {
             let entry = &multibodies[ma];
-            if ba == bb || !entry.self_collision {
+            if ba == bb || (!entry.self_collision && entry.trees[ba] == entry.trees[bb]) {
                 return false;
             }
             let joined = entry.parents[ba] == bb || entry.parents[bb] == ba;

@@ -25,9 +25,11 @@ impl MjcfScene {
 
     /// A world with `options` (usually [`MjcfScene::world_options`]) holding the colliding static
     /// geoms (material 0) and the model as one multibody named like it, at [`MjcfScene::q0`] and
-    /// at rest. Its bodies collide with each other as MuJoCo's do by default: every pair but a
-    /// body and its parent (the world's filter of bodies joined by a joint); `<contact><exclude>`,
-    /// `<flag contact>` and contype/conaffinity masks other than both 0 are not applied.
+    /// at rest. The file's top-level bodies (trees on the world body: the humanoids of a pile)
+    /// collide with each other, as in MuJoCo; within one tree self-collision stays off (MuJoCo's
+    /// humanoid overlaps its own capsules between non-adjacent bodies, which hard contacts cannot
+    /// hold apart), and `<contact><exclude>`, `<flag contact>` and contype/conaffinity masks other
+    /// than both 0 are not applied.
     pub fn into_world(self, options: WorldOptions) -> Result<World, StepError> {
         let mut world = World::new(options);
         for s in self.statics.iter().filter(|s| s.collides) {
@@ -35,11 +37,6 @@ impl MjcfScene {
         }
         let name = self.model.name().to_string();
         let index = world.add_multibody(&name, self.model, &MeshOptions::default())?;
-        // MuJoCo collides every pair of geoms that may (contype/conaffinity) but those of a body
-        // and its parent: the file's bodies are one multibody here, so its self-collision is on
-        // (the world skips bodies joined by a joint, as MuJoCo's parent filter does). Without it
-        // a pile of humanoids in one file falls through itself.
-        world.set_self_collision(index, true)?;
         world.multibody_mut(index).state.q.copy_from(&self.q0);
         Ok(world)
     }
