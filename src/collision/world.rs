@@ -574,7 +574,7 @@ impl CollisionWorld {
         self.stats.raw_points += self.candidates.len();
         if self.candidates.len() > MAX_POINTS_PER_PAIR {
             let (drift_a, drift_b) = (self.drift_of(a), self.drift_of(b));
-            if drift_a.is_some() || drift_b.is_some() {
+            if let Some(h) = drift_a.or(drift_b).map(|m| m.h) {
                 let (origin_a, origin_b) =
                     (from_vector(ca.world_pose.translation), from_vector(cb.world_pose.translation));
                 for c in &mut self.candidates {
@@ -582,7 +582,6 @@ impl CollisionWorld {
                         drift_a.map_or(0.0, |m| m.point_velocity(&origin_a, &c.point_a).dot(&c.normal));
                     let rate_b =
                         drift_b.map_or(0.0, |m| m.point_velocity(&origin_b, &c.point_b).dot(&c.normal));
-                    let h = drift_a.or(drift_b).map_or(0.0, |m| m.h);
                     c.predicted = c.distance + h * (rate_a - rate_b);
                 }
             }
