@@ -1,17 +1,19 @@
 //! The Newton solver's Hessian `H = I + Wᵀ G W` (nv × nv, symmetric positive definite) and its
 //! Cholesky factor `H = L Lᵀ`, sparse by blocks.
 //!
-//! The velocity blocks are the multibodies. A block's own entries are dense (its rows' paths
-//! overlap near the root, and a floating base couples them all), and two blocks are coupled
-//! where some group of rows touches both (a contact between two multibodies). The factor keeps
-//! that structure: the blocks are eliminated in an approximate-minimum-degree order of the
-//! block graph (faer's AMD), and L is stored as one dense panel per block, column-major: the
-//! block's diagonal block over the later blocks its columns reach (coupled ones and fill).
-//! Every operation of the factorization and of the solves is then a short dense loop over
-//! contiguous panel columns, with no permutation of H or of the right-hand side (a panel's rows
-//! are blocks' own columns). This is a supernodal Cholesky whose supernodes are the multibodies;
-//! a general sparse code (faer's simplicial or supernodal LLᵀ) spends most of its time on the
-//! scalar pattern and the permutations on these small, dense blocks.
+//! The blocks are stretches of consecutive velocity columns that the solver chooses (branches
+//! of the multibodies' trees). A block's own entries are kept dense, and two blocks are coupled
+//! where some group of rows touches both (two branches on one path to the root, or a contact
+//! between two multibodies). The factor keeps that structure: the blocks are eliminated in an
+//! approximate-minimum-degree order of the block graph (faer's AMD), and L is stored as one
+//! dense panel per block, column-major: the block's diagonal block over the later blocks its
+//! columns reach (coupled ones and fill). A panel updates the later blocks through one dense
+//! product of its rows below (`U = L_below L_belowᵀ`), scattered block by block; the solves
+//! gather and scatter a panel's rows below once per block. There is no permutation of H or of
+//! the right-hand side (a panel's rows are blocks' own columns): this is a supernodal Cholesky
+//! whose supernodes are the branches; a general sparse code (faer's simplicial or supernodal
+//! LLᵀ) spends most of its time on the scalar pattern and the permutations on these small,
+//! dense blocks.
 //!
 //! The order and the panels are kept while the set of coupled block pairs stays the same: a
 //! resting pile factors with the analysis of an earlier step.
@@ -36,6 +38,13 @@ pub(super) struct Hessian {
     /// where each starts: `below[below_start[b]..below_start[b + 1]]`.
     below_start: Vec<usize>,
     below: Vec<(usize, usize)>,
+    /// The rank of each entry of `below`, for searching a panel's later blocks.
+    below_rank: Vec<usize>,
+    /// Scratch of [`Hessian::factor`]: per block, where it starts in the panel being updated;
+    /// and the update a panel makes to the later blocks (also the gathered rows of
+    /// [`Hessian::solve`]).
+    scatter: Vec<usize>,
+    update: Vec<f64>,
     /// Per block, where its panel starts in `values` (panels are laid out in elimination order)
     /// and the panel's height (its own width plus the widths of the blocks below).
     panel_start: Vec<usize>,
@@ -201,22 +210,30 @@ impl Hessian {
         }
         self.below_start.clear();
         self.below.clear();
+        self.below_rank.clear();
         self.height.clear();
         for b in 0..nb {
             self.below_start.push(self.below.len());
             let mut row = self.blocks[b].1;
             for &r in &lists[list_start[b]..list_start[b] + list_len[b]] {
                 self.below.push((r, row));
+                self.below_rank.push(self.rank[r]);
                 row += self.blocks[r].1;
             }
             self.height.push(row);
         }
         self.below_start.push(self.below.len());
+        self.scatter.clear();
+        self.scatter.resize(nb, 0);
     }
 
     /// The panel row where block `r`'s rows start in block `b`'s panel (`r` later than `b`).
     fn offset(&self, b: usize, r: usize) -> usize {
-        offset_in(&self.below[self.below_start[b]..self.below_start[b + 1]], &self.rank, r)
+        let range = self.below_start[b]..self.below_start[b + 1];
+        let at = self.below_rank[range.clone()]
+            .binary_search(&self.rank[r])
+            .expect("a later block of the pattern");
+        self.below[range][at].1
     }
 
     /// Where H's entry (i, j) lives in `values` (i's block not before j's in block index).
@@ -246,9 +263,9 @@ impl Hessian {
     /// Adds the lower triangle of the symmetric `leftᵀ right` (both `count` × `columns.len()`,
     /// row-major) at the rows and columns `columns` (increasing): a group's `W_gᵀ (G W_g)`,
     /// into the panels without forming it. The group's columns fall into segments of
-    /// consecutive columns of one block, whose entries in a column of H are consecutive in a
-    /// panel (or one panel row apart, when the segment's block is eliminated first): each
-    /// segment is added by one short loop over contiguous rows of `left`.
+    /// consecutive columns of one block; the entries of a pair of segments form a rectangle of
+    /// one panel (its columns one panel height apart, its rows consecutive, or the other way
+    /// round when the later segment's block is eliminated first), located once per pair.
     pub(super) fn add_gram(&mut self, columns: &[usize], left: &[f64], right: &[f64], count: usize) {
         let m = columns.len();
         let mut segments = std::mem::take(&mut self.segments);
@@ -262,32 +279,36 @@ impl Hessian {
             }
         }
         segments.push(m);
-        let mut first_segment = 0;
-        for b in 0..m {
-            let j = columns[b];
-            let block_of_j = self.block_of_col[j];
-            while segments[first_segment + 1] <= b {
-                first_segment += 1;
-            }
-            let weights = [
-                right[b],
-                if count > 1 { right[m + b] } else { 0.0 },
-                if count > 2 { right[2 * m + b] } else { 0.0 },
-            ];
-            for s in first_segment..segments.len() - 1 {
-                let (from, to) = (segments[s].max(b), segments[s + 1]);
-                let block = self.block_of_col[columns[from]];
-                let start = self.position(columns[from], j);
-                let transposed = block != block_of_j && self.rank[block] < self.rank[block_of_j];
-                let len = to - from;
-                if count <= 3 && !transposed {
-                    let target = &mut self.assembled[start..start + len];
-                    add_rows(target, left, m, from, count, &weights);
+        for sb in 0..segments.len() - 1 {
+            let (b0, b1) = (segments[sb], segments[sb + 1]);
+            for sa in sb..segments.len() - 1 {
+                let (a0, a1) = (segments[sa], segments[sa + 1]);
+                let start = self.position(columns[a0], columns[b0]);
+                let block_a = self.block_of_col[columns[a0]];
+                let block_b = self.block_of_col[columns[b0]];
+                // Steps in `assembled` from one row (a) and one column (b) of the rectangle
+                // to the next: rows of a panel are consecutive, its columns `height` apart.
+                let (step_a, step_b) = if block_a != block_b && self.rank[block_a] < self.rank[block_b] {
+                    (self.height[block_a], 1)
                 } else {
-                    let stride = if transposed { self.height[block] } else { 1 };
-                    for a in from..to {
-                        let sum: f64 = (0..count).map(|r| left[r * m + a] * right[r * m + b]).sum();
-                        self.assembled[start + (a - from) * stride] += sum;
+                    (1, self.height[block_b])
+                };
+                for b in b0..b1 {
+                    let from = if sa == sb { b } else { a0 };
+                    let at = start + (b - b0) * step_b + (from - a0) * step_a;
+                    let weights = [
+                        right[b],
+                        if count > 1 { right[m + b] } else { 0.0 },
+                        if count > 2 { right[2 * m + b] } else { 0.0 },
+                    ];
+                    if count <= 3 && step_a == 1 {
+                        let target = &mut self.assembled[at..at + (a1 - from)];
+                        add_rows(target, left, m, from, count, &weights);
+                    } else {
+                        for a in from..a1 {
+                            let sum: f64 = (0..count).map(|r| left[r * m + a] * right[r * m + b]).sum();
+                            self.assembled[at + (a - from) * step_a] += sum;
+                        }
                     }
                 }
             }
@@ -323,7 +344,8 @@ impl Hessian {
     /// Factors H = L Lᵀ (its values as added since [`Self::reset`], which stay assembled).
     pub(super) fn factor(&mut self) -> Result<(), NotPositiveDefinite> {
         self.values.copy_from_slice(&self.assembled);
-        let Self { order, blocks, below, below_start, panel_start, height, rank, values, .. } = self;
+        let Self { order, blocks, below, below_start, panel_start, height, values, scatter, update, .. } =
+            self;
         for &b in order.iter() {
             let width = blocks[b].1;
             let (start, h) = (panel_start[b], height[b]);
@@ -332,28 +354,57 @@ impl Hessian {
             let panel = &mut done[start..];
             factor_panel(panel, h, width)?;
             let entries = &below[below_start[b]..below_start[b + 1]];
+            let below_rows = h - width;
+            if below_rows == 0 {
+                continue;
+            }
+            // U = L_{below,b} L_{below,b}ᵀ, the update of every later block this one reaches
+            // (lower triangle, column-major), by rank-one updates over contiguous columns.
+            update.clear();
+            update.resize(below_rows * below_rows, 0.0);
+            let column = |kk: usize| &panel[kk * h + width..(kk + 1) * h];
+            let mut kk = 0;
+            while kk + 2 <= width {
+                let (c0, c1) = (column(kk), column(kk + 1));
+                for j in 0..below_rows {
+                    let (f0, f1) = (c0[j], c1[j]);
+                    let target = &mut update[j * below_rows + j..(j + 1) * below_rows];
+                    for ((t, s0), s1) in target.iter_mut().zip(&c0[j..]).zip(&c1[j..]) {
+                        *t += f0 * s0 + f1 * s1;
+                    }
+                }
+                kk += 2;
+            }
+            if kk < width {
+                let c0 = column(kk);
+                for j in 0..below_rows {
+                    let f0 = c0[j];
+                    let target = &mut update[j * below_rows + j..(j + 1) * below_rows];
+                    for (t, s0) in target.iter_mut().zip(&c0[j..]) {
+                        *t += f0 * s0;
+                    }
+                }
+            }
             let base = start + h * width;
             for (p, &(r1, o1)) in entries.iter().enumerate() {
                 let w1 = blocks[r1].1;
                 let (s1, h1) = (panel_start[r1] - base, height[r1]);
-                let later_of_r1 = &below[below_start[r1]..below_start[r1 + 1]];
+                // The later blocks of b's panel are r1's later blocks too (the fill analysis
+                // makes them so): where each starts in r1's panel, by block.
+                for &(r, row) in &below[below_start[r1]..below_start[r1 + 1]] {
+                    scatter[r] = row;
+                }
                 for &(r2, o2) in &entries[p..] {
                     let w2 = blocks[r2].1;
-                    let (dest, diagonal) =
-                        if r2 == r1 { (0, true) } else { (offset_in(later_of_r1, rank, r2), false) };
-                    // Block (r2, r1) of H −= L_{r2,b} L_{r1,b}ᵀ (its lower triangle on the diagonal).
+                    let (dest, diagonal) = if r2 == r1 { (0, true) } else { (scatter[r2], false) };
+                    // Block (r2, r1) of H −= its block of U (the lower triangle on the diagonal).
                     for j in 0..w1 {
-                        let target = &mut later[s1 + j * h1 + dest..s1 + j * h1 + dest + w2];
                         let from = if diagonal { j } else { 0 };
-                        for kk in 0..width {
-                            let column = &panel[kk * h..(kk + 1) * h];
-                            let f = column[o1 + j];
-                            if f != 0.0 {
-                                let source = &column[o2 + from..o2 + w2];
-                                for (t, s) in target[from..].iter_mut().zip(source) {
-                                    *t -= f * s;
-                                }
-                            }
+                        let column = s1 + j * h1 + dest;
+                        let target = &mut later[column + from..column + w2];
+                        let u = (o1 - width + j) * below_rows + o2 - width;
+                        for (t, s) in target.iter_mut().zip(&update[u + from..u + w2]) {
+                            *t -= s;
                         }
                     }
                 }
@@ -363,43 +414,49 @@ impl Hessian {
     }
 
     /// Solves H x = rhs in place with the last factor.
-    pub(super) fn solve(&self, rhs: &mut [f64]) {
-        // L y = rhs, blocks in elimination order.
-        for &b in &self.order {
-            let (c, width) = self.blocks[b];
-            let (start, h) = (self.panel_start[b], self.height[b]);
-            let entries = &self.below[self.below_start[b]..self.below_start[b + 1]];
+    pub(super) fn solve(&mut self, rhs: &mut [f64]) {
+        let Self { order, blocks, below, below_start, panel_start, height, values, update: gathered, .. } =
+            self;
+        // L y = rhs, blocks in elimination order: the block's own triangle, then its panel's
+        // rows below times y into the later blocks (accumulated contiguously, scattered once).
+        for &b in order.iter() {
+            let (c, width) = blocks[b];
+            let (start, h) = (panel_start[b], height[b]);
+            let below_rows = h - width;
+            gathered.clear();
+            gathered.resize(below_rows, 0.0);
             for j in 0..width {
-                let column = &self.values[start + j * h..start + (j + 1) * h];
+                let column = &values[start + j * h..start + (j + 1) * h];
                 let y = rhs[c + j] / column[j];
                 rhs[c + j] = y;
                 for (x, l) in rhs[c + j + 1..c + width].iter_mut().zip(&column[j + 1..width]) {
                     *x -= l * y;
                 }
-                for &(r, row) in entries {
-                    let (cr, wr) = self.blocks[r];
-                    for (x, l) in rhs[cr..cr + wr].iter_mut().zip(&column[row..row + wr]) {
-                        *x -= l * y;
-                    }
+                for (g, l) in gathered.iter_mut().zip(&column[width..]) {
+                    *g += l * y;
+                }
+            }
+            for &(r, row) in &below[below_start[b]..below_start[b + 1]] {
+                let (cr, wr) = blocks[r];
+                for (x, g) in rhs[cr..cr + wr].iter_mut().zip(&gathered[row - width..row - width + wr]) {
+                    *x -= g;
                 }
             }
         }
-        // Lᵀ x = y, in reverse.
-        for &b in self.order.iter().rev() {
-            let (c, width) = self.blocks[b];
-            let (start, h) = (self.panel_start[b], self.height[b]);
-            let entries = &self.below[self.below_start[b]..self.below_start[b + 1]];
+        // Lᵀ x = y, in reverse: the later blocks' x gathered once per block.
+        for &b in order.iter().rev() {
+            let (c, width) = blocks[b];
+            let (start, h) = (panel_start[b], height[b]);
+            gathered.clear();
+            for &(r, _) in &below[below_start[b]..below_start[b + 1]] {
+                let (cr, wr) = blocks[r];
+                gathered.extend_from_slice(&rhs[cr..cr + wr]);
+            }
             for j in (0..width).rev() {
-                let column = &self.values[start + j * h..start + (j + 1) * h];
-                let mut s = rhs[c + j];
+                let column = &values[start + j * h..start + (j + 1) * h];
+                let mut s = rhs[c + j] - crate::math::dot(&column[width..], gathered);
                 for (x, l) in rhs[c + j + 1..c + width].iter().zip(&column[j + 1..width]) {
                     s -= l * x;
-                }
-                for &(r, row) in entries {
-                    let (cr, wr) = self.blocks[r];
-                    for (x, l) in rhs[cr..cr + wr].iter().zip(&column[row..row + wr]) {
-                        s -= l * x;
-                    }
                 }
                 rhs[c + j] = s / column[j];
             }
@@ -428,14 +485,6 @@ fn add_rows(target: &mut [f64], left: &[f64], m: usize, from: usize, count: usiz
             }
         }
     }
-}
-
-/// The panel row where block `r`'s rows start, among a panel's later blocks `entries`.
-fn offset_in(entries: &[(usize, usize)], rank: &[usize], r: usize) -> usize {
-    let at = entries
-        .binary_search_by_key(&rank[r], |&(block, _)| rank[block])
-        .expect("a later block of the pattern");
-    entries[at].1
 }
 
 /// Cholesky of a panel (`h` rows, `width` columns, column-major): its top `width` × `width`

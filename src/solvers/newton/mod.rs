@@ -109,7 +109,12 @@ struct Workspace {
     columns: Vec<usize>,
     local_start: Vec<usize>,
     local_w: Vec<f64>,
-    /// Coupled block pairs.
+    /// The Hessian's blocks (branches of the multibodies' trees, see [`hessian_blocks`]), each
+    /// column's block, and the coupled block pairs (blocks some group's columns touch together).
+    hessian_blocks: Vec<(usize, usize)>,
+    block_of_col: Vec<usize>,
+    cuts: Vec<bool>,
+    touched: Vec<usize>,
     pairs: Vec<(usize, usize)>,
     /// Per group, its Hessian block (row-major, up to 3 × 3) and zone at the current x.
     curvature: Vec<[f64; 9]>,
@@ -204,9 +209,9 @@ impl ConstraintSolver for NewtonSolver {
             rows::dense_factor(problem, &mut self.own_w)?;
         }
         let w_rows: &RowSparsity = if own_rows { &self.own_w } else { &problem.sparsity };
-        setup_groups(problem, w_rows, ws)?;
+        setup_groups(problem, w_rows, own_rows, ws)?;
         set_metric(problem, ws, self.epsilon);
-        ws.hessian.prepare(&w_rows.blocks, &ws.pairs);
+        ws.hessian.prepare(&ws.hessian_blocks, &ws.pairs);
         ws.assembled = false;
         for v in [
             &mut ws.c,
@@ -277,7 +282,12 @@ impl ConstraintSolver for NewtonSolver {
 
 /// The groups of rows, their columns and local rows of W, the coupled block pairs, and each
 /// row's diagonal.
-fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace) -> Result<(), SolverError> {
+fn setup_groups(
+    problem: &ConstraintProblem,
+    w: &RowSparsity,
+    own_rows: bool,
+    ws: &mut Workspace,
+) -> Result<(), SolverError> {
     let n = problem.rows();
     ws.groups.clear();
     for i in 0..n {
@@ -323,6 +333,7 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
         };
         ws.diagonal.push(a + problem.regularization[i]);
     }
+    hessian_blocks(w, ws, own_rows);
     ws.column_start.clear();
     ws.columns.clear();
     ws.local_start.clear();
@@ -342,14 +353,6 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
                     ws.columns.extend(col..col + wi.len());
                 }
             }
-            if i == first || w.row_blocks(i) != w.row_blocks(first) {
-                let blocks = w.row_blocks(i);
-                for (k, &a) in blocks.iter().enumerate() {
-                    for &b in &blocks[k + 1..] {
-                        ws.pairs.push((a.min(b), a.max(b)));
-                    }
-                }
-            }
         }
         if !shared || ws.columns[start..].windows(2).any(|p| p[0] >= p[1]) {
             ws.columns[start..].sort_unstable();
@@ -363,6 +366,18 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
             ws.columns.truncate(write);
         }
         let write = ws.columns.len();
+        ws.touched.clear();
+        for &col in &ws.columns[start..write] {
+            let block = ws.block_of_col[col];
+            if ws.touched.last() != Some(&block) {
+                ws.touched.push(block);
+            }
+        }
+        for (k, &a) in ws.touched.iter().enumerate() {
+            for &b in &ws.touched[k + 1..] {
+                ws.pairs.push((a, b));
+            }
+        }
         ws.column_start.push(write);
         let cols = write - start;
         ws.local_start.push(ws.local_w.len());
@@ -384,6 +399,39 @@ fn setup_groups(problem: &ConstraintProblem, w: &RowSparsity, ws: &mut Workspace
     ws.zones.clear();
     ws.zones.resize(ws.groups.len(), Zone::Free);
     Ok(())
+}
+
+/// `ws.hessian_blocks` and `ws.block_of_col`: the multibodies' blocks cut where a run of W's rows
+/// starts. A row's runs are its bodies' paths to the root; in the depth-first numbering of a
+/// tree a run starts at a root or at a child that does not follow its parent, so the blocks
+/// are branches: a joint with its chain of first children (a ragdoll's pelvis and first leg,
+/// the other leg, the spine and head, each arm). H's pattern over them keeps the tree's
+/// sparsity, where two branches are coupled only by rows that touch both, with few blocks
+/// (joint-sized ones cost more in bookkeeping than their zeros save).
+fn hessian_blocks(w: &RowSparsity, ws: &mut Workspace, own_rows: bool) {
+    let nv = w.nv;
+    ws.cuts.clear();
+    ws.cuts.resize(nv + 1, false);
+    ws.cuts[nv] = true;
+    for &(first, _) in &w.blocks {
+        ws.cuts[first] = true;
+    }
+    // The solver's own W (a Cholesky factor of a dense A) is dense: its block stays whole.
+    if !own_rows {
+        for &(col, _, _) in &w.runs {
+            ws.cuts[col] = true;
+        }
+    }
+    ws.hessian_blocks.clear();
+    ws.block_of_col.clear();
+    let mut first = 0;
+    for col in 1..=nv {
+        if ws.cuts[col] {
+            ws.block_of_col.extend(std::iter::repeat_n(ws.hessian_blocks.len(), col - first));
+            ws.hessian_blocks.push((first, col - first));
+            first = col;
+        }
+    }
 }
 
 /// E = max(R, ε d) per row (a floor keeps E > 0 on rows without inertia), the friction rows of a
@@ -655,6 +703,29 @@ mod tests {
     use super::*;
     use crate::constraints::ContactBlock;
     use nalgebra::DMatrix;
+
+    /// A tree numbered depth first (a floating base of 6 columns, its first child's chain of
+    /// 3 and a second child of 3): rows on the base, down the first chain and down the second
+    /// branch cut the columns into the two branches, which a Newton Hessian then keeps
+    /// uncoupled; the solver's own dense W stays one block.
+    #[test]
+    fn the_hessian_blocks_are_the_branches_of_a_tree() {
+        let mut w = RowSparsity { nv: 12, blocks: vec![(0, 12)], ..RowSparsity::default() };
+        w.run_start.push(0);
+        for runs in [&[(0, 6)][..], &[(0, 9)], &[(0, 6), (9, 3)], &[(0, 7)]] {
+            for &(col, len) in runs {
+                w.runs.push((col, w.w_values.len(), len));
+                w.w_values.extend(std::iter::repeat_n(1.0, len));
+            }
+            w.run_start.push(w.runs.len());
+        }
+        let mut ws = Workspace::default();
+        hessian_blocks(&w, &mut ws, false);
+        assert_eq!(ws.hessian_blocks, vec![(0, 9), (9, 3)]);
+        assert_eq!(ws.block_of_col, [vec![0; 9], vec![1; 3]].concat());
+        hessian_blocks(&w, &mut ws, true);
+        assert_eq!(ws.hessian_blocks, vec![(0, 12)]);
+    }
 
     /// A contact whose tangents are thirty times stiffer than its normal (a tangent that spins
     /// a slender limb), softened as the world's softness does (R = 0.1 A_nn on all three rows):
