@@ -11,8 +11,9 @@
 //!   (`tests/fuzz_corpus/fclib/`): libhdf5 must report the damage, and gelenk a typed error.
 //!
 //! Every error must name the file; every problem read must be finite, of consistent sizes, and,
-//! when small, solved by every corpus solver to finite numbers. The file under test is kept at
-//! `<target tmp>/fuzz-fclib/`, so that the input of a case that kills the process is there.
+//! when small, solved by every corpus solver to finite numbers. The file under test is
+//! `<target tmp>/fuzz-fclib/{content,bytes}-<process id>.hdf5`, removed when the target ends
+//! well: after a case that kills the process (libhdf5 crashing), it holds that case's input.
 //!
 //! `cargo test --profile ci --features fclib --test fuzz_fclib`; an hour per target:
 //! `GELENK_FUZZ_SECONDS=3600 GELENK_FUZZ_SEED=random cargo test --profile ci --features fclib --test fuzz_fclib -- --test-threads 1`.
@@ -84,6 +85,11 @@ fn workdir() -> &'static (PathBuf, Option<PathBuf>) {
     })
 }
 
+/// The file a target writes its cases to, one per process (runs may share the target directory).
+fn case_file(target: &str, dir: &Path) -> PathBuf {
+    dir.join(format!("{target}-{}.hdf5", std::process::id()))
+}
+
 /// A problem read: sizes that agree, finite numbers, and finite answers of every corpus solver
 /// when it has at most [`SOLVED_ROWS`] rows.
 fn check_problem(local: &FclibLocal) -> Verdict {
@@ -138,7 +144,7 @@ fn same(a: &FclibLocal, b: &FclibLocal) -> bool {
 
 fn content(plan: &[u8]) -> Verdict {
     let (dir, fifo) = workdir();
-    let path = dir.join("content.hdf5");
+    let path = case_file("content", dir);
     let expect = write_case(plan, &path, fifo.as_deref());
     match (read_fclib(&path), expect) {
         (Ok(local), Expect::Local(want)) if !same(&local, &want) => {
@@ -152,7 +158,7 @@ fn content(plan: &[u8]) -> Verdict {
 }
 
 fn bytes(input: &[u8]) -> Verdict {
-    let path = workdir().0.join("bytes.hdf5");
+    let path = case_file("bytes", &workdir().0);
     std::fs::write(&path, input).map_err(|e| format!("{}: {e}", path.display()))?;
     match read_fclib(&path) {
         Ok(local) => check_problem(&local),
@@ -163,9 +169,36 @@ fn bytes(input: &[u8]) -> Verdict {
 #[test]
 fn fuzz_fclib_content() {
     assert!(fuzz("fclib-plan", PLAN_TOKENS, CASE, content) > 0);
+    std::fs::remove_file(case_file("content", &workdir().0)).ok();
 }
 
 #[test]
 fn fuzz_fclib_bytes() {
     assert!(fuzz("fclib", HDF5_TOKENS, CASE, bytes) > 0);
+    std::fs::remove_file(case_file("bytes", &workdir().0)).ok();
+}
+
+/// Truncated copies of the corpus's valid files: libhdf5 compares the file's length with the
+/// end its superblock records, so each is refused, and gelenk's error names the file.
+#[test]
+fn truncated_files_are_typed_errors() {
+    let path = case_file("truncated", &workdir().0);
+    for (name, bytes) in fuzz_support::corpus("fclib") {
+        if read_fclib_bytes(&path, &bytes).is_err() {
+            continue; // a found-* file, refused whole
+        }
+        let stride = (bytes.len() / 300).max(1);
+        for len in (0..bytes.len()).step_by(stride).chain(bytes.len() - 8..bytes.len()) {
+            match read_fclib_bytes(&path, &bytes[..len]) {
+                Ok(_) => panic!("{}: its first {len} bytes read as a problem", name.display()),
+                Err(e) => check_error(&e, &path).unwrap(),
+            }
+        }
+    }
+    std::fs::remove_file(&path).ok();
+}
+
+fn read_fclib_bytes(path: &Path, bytes: &[u8]) -> Result<FclibLocal, ProblemFileError> {
+    std::fs::write(path, bytes).unwrap();
+    read_fclib(path)
 }
