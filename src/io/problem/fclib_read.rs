@@ -8,7 +8,9 @@
 //!   another file, a device or a pipe);
 //! - a dataset's declared size is checked before it is read: at most [`FCLIB_MAX_ENTRIES`]
 //!   entries, and exactly as many as W's size implies where it implies one; W, held dense, has at
-//!   most [`FCLIB_MAX_ENTRIES`] entries;
+//!   most [`FCLIB_MAX_ENTRIES`] entries; data stored in one block (compact, or contiguous and
+//!   written) has exactly the entries' size (a damaged layout recording less crashes libhdf5
+//!   1.10 in its read);
 //! - integers (sizes, indices) are stored as integers and numbers as floating-point numbers;
 //! - indices lie in range, compressed pointers start at 0 and never decrease, a compressed
 //!   column or row holds each index once, W is finite,
@@ -105,7 +107,25 @@ impl Source<'_> {
                 format!("declared with dimensions {:?}: over {FCLIB_MAX_ENTRIES} entries", extents.dims()),
             )
         })?;
-        let stored = dataset.dtype().and_then(|t| t.to_descriptor()).map_err(|e| self.invalid(name, e))?;
+        let dtype = dataset.dtype().map_err(|e| self.invalid(name, e))?;
+        // Data in one block fills exactly its entries: a damaged layout that records less makes
+        // libhdf5 1.10 copy from beyond its buffer (SIGSEGV). A compact block (in the object
+        // header) is always there; a contiguous one may be unallocated, when never written (the
+        // dataset then reads as its fill value, as fclib's own sample's solution/r).
+        let bytes = (len as u64).saturating_mul(dtype.size() as u64);
+        let stored_bytes = dataset.storage_size();
+        let whole = match layout.layout() {
+            Layout::Compact => stored_bytes == bytes,
+            Layout::Contiguous => stored_bytes == bytes || stored_bytes == 0,
+            _ => true,
+        };
+        if !whole {
+            return Err(self.invalid(
+                name,
+                format!("{len} entries of {} bytes stored in {stored_bytes} bytes", dtype.size()),
+            ));
+        }
+        let stored = dtype.to_descriptor().map_err(|e| self.invalid(name, e))?;
         let fits = match kind {
             Kind::Int => matches!(stored, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)),
             Kind::Float => matches!(stored, TypeDescriptor::Float(_)),
