@@ -4,7 +4,8 @@
 //! end in a typed error or in a result whose numbers are all finite: the model's dynamics at its
 //! neutral configuration and a few world steps on a ground for URDF and MJCF, a short run for a
 //! scene, the dynamics on each state for states, every corpus solver for a problem. A panic, a
-//! case over its time budget or a non-finite number returned as `Ok` fails the test.
+//! case over its time budget or a non-finite number returned as `Ok` fails the test. The FCLIB
+//! reader (HDF5, the `fclib` feature) has its own targets in `tests/fuzz_fclib.rs`.
 //!
 //! CI runs each target for `GELENK_FUZZ_SECONDS` (default 8 s); an hour per target:
 //! `GELENK_FUZZ_SECONDS=3600 GELENK_FUZZ_SEED=random cargo test --profile ci --test fuzz -- --test-threads 1`.

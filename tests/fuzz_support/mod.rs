@@ -10,6 +10,9 @@
 
 #![allow(dead_code)]
 
+#[cfg(feature = "fclib")]
+pub mod fclib;
+
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::path::{Path, PathBuf};

@@ -15,7 +15,8 @@
 //! gelenk's problem maps as `W = A + R` (the softness R folded into W), `q = b`, `μ` of each
 //! contact, the rows in the problem's order (contact k on rows 3k, 3k+1, 3k+2: normal first).
 //! Only problems of contact blocks alone, with isotropic friction (μ = μ₂), have this form
-//! ([`fclib_of`] says why not otherwise). [`read_fclib`] also reads triplet matrices (`nz ≥ 0`).
+//! ([`fclib_of`] says why not otherwise). [`read_fclib`](super::read_fclib) (in `fclib_read`) also
+//! reads W as compressed rows (`nz = −2`, as fclib's own sample file) and triplets (`nz ≥ 0`).
 //! HDF5 is the system's C library: the `fclib` cargo feature, `apt-get install libhdf5-dev`.
 
 use super::{validate_problem, ProblemFileError};
@@ -146,137 +147,9 @@ pub fn write_fclib(path: &Path, local: &FclibLocal) -> Result<(), ProblemFileErr
     write().map_err(|(field, e)| h5(path, field, e))
 }
 
-/// Reads an FCLIB local problem (and its `/solution` when present) from `path`. Errors name the
-/// file and the dataset: a file that is not HDF5 or is truncated, a missing dataset, sizes that
-/// disagree, indices out of range, a W that is not symmetric or not positive on its diagonal,
-/// a negative or non-finite μ.
-pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
-    if let Err(source) = std::fs::metadata(path) {
-        return Err(ProblemFileError::Read { path: path.to_path_buf(), source });
-    }
-    let file = hdf5::File::open(path).map_err(|e| h5(path, "file (not an HDF5 file, or truncated)", e))?;
-    if !file.link_exists("fclib_local") {
-        let global = file.link_exists("fclib_global") || file.link_exists("fclib_global_rolling");
-        return Err(invalid(
-            path,
-            if global {
-                "/fclib_local: the file holds a global FCLIB problem; only the local form is read".into()
-            } else {
-                "/fclib_local: no local FCLIB problem in the file".into()
-            },
-        ));
-    }
-    let ints = |name: &str| -> Result<Vec<i64>, ProblemFileError> {
-        file.dataset(name).and_then(|d| d.read_raw::<i64>()).map_err(|e| h5(path, name, e))
-    };
-    let doubles = |name: &str| -> Result<Vec<f64>, ProblemFileError> {
-        file.dataset(name).and_then(|d| d.read_raw::<f64>()).map_err(|e| h5(path, name, e))
-    };
-    let scalar = |name: &str| -> Result<i64, ProblemFileError> {
-        match ints(name)?[..] {
-            [x] => Ok(x),
-            ref other => Err(invalid(path, format!("{name}: {} entries, expected 1", other.len()))),
-        }
-    };
-    let spacedim = scalar("fclib_local/spacedim")?;
-    if spacedim != 3 {
-        return Err(invalid(
-            path,
-            format!("fclib_local/spacedim = {spacedim}: only 3-D contact problems are read"),
-        ));
-    }
-    if file.link_exists("fclib_local/V") || file.link_exists("fclib_local/R") {
-        return Err(invalid(path, "fclib_local/V, R: mixed problems (equality rows) are not read".into()));
-    }
-    let (m, n, nz) = (scalar("fclib_local/W/m")?, scalar("fclib_local/W/n")?, scalar("fclib_local/W/nz")?);
-    if m != n || m < 0 || m % 3 != 0 {
-        return Err(invalid(
-            path,
-            format!("fclib_local/W: {m} × {n}, expected square with 3 rows per contact"),
-        ));
-    }
-    let m = m as usize;
-    let (p, i, x) = (ints("fclib_local/W/p")?, ints("fclib_local/W/i")?, doubles("fclib_local/W/x")?);
-    let index = |v: i64, bound: usize, field: &str| {
-        usize::try_from(v)
-            .ok()
-            .filter(|&v| v < bound)
-            .ok_or_else(|| invalid(path, format!("fclib_local/W/{field}: index {v} outside 0..{bound}")))
-    };
-    let mut w = DMatrix::zeros(m, m);
-    if nz == -1 {
-        if p.len() != m + 1 || i.len() != x.len() {
-            return Err(invalid(
-                path,
-                format!(
-                    "fclib_local/W/p: {} pointers for {m} columns, i has {}, x has {}",
-                    p.len(),
-                    i.len(),
-                    x.len()
-                ),
-            ));
-        }
-        for j in 0..m {
-            let (start, end) = (p[j], p[j + 1]);
-            if start < 0 || end < start || end as usize > x.len() {
-                return Err(invalid(
-                    path,
-                    format!("fclib_local/W/p: column {j} spans {start}..{end} of {}", x.len()),
-                ));
-            }
-            for k in start as usize..end as usize {
-                w[(index(i[k], m, "i")?, j)] = x[k];
-            }
-        }
-    } else if nz >= 0 {
-        let count = nz as usize;
-        if p.len() != count || i.len() != count || x.len() < count {
-            return Err(invalid(
-                path,
-                format!(
-                    "fclib_local/W: nz = {nz} triplets, but p has {}, i {}, x {}",
-                    p.len(),
-                    i.len(),
-                    x.len()
-                ),
-            ));
-        }
-        for k in 0..count {
-            w[(index(i[k], m, "i")?, index(p[k], m, "p")?)] += x[k];
-        }
-    } else {
-        return Err(invalid(path, format!("fclib_local/W/nz = {nz}: compressed rows are not read")));
-    }
-    let q = doubles("fclib_local/vectors/q")?;
-    let mu = doubles("fclib_local/vectors/mu")?;
-    if q.len() != m || 3 * mu.len() != m {
-        return Err(invalid(
-            path,
-            format!("fclib_local/vectors: q has {} entries and mu {}, W is {m} × {m}", q.len(), mu.len()),
-        ));
-    }
-    if let Some(k) = mu.iter().position(|&v| !(v >= 0.0 && v.is_finite())) {
-        return Err(invalid(path, format!("fclib_local/vectors/mu: contact {k} has μ = {}", mu[k])));
-    }
-    let solution = if file.link_exists("solution/u") && file.link_exists("solution/r") {
-        let (u, r) = (doubles("solution/u")?, doubles("solution/r")?);
-        if u.len() != m || r.len() != m {
-            return Err(invalid(
-                path,
-                format!("solution: u has {} entries and r {}, expected {m}", u.len(), r.len()),
-            ));
-        }
-        Some((DVector::from_vec(u), DVector::from_vec(r)))
-    } else {
-        None
-    };
-    let local = FclibLocal { w, q: DVector::from_vec(q), mu: DVector::from_vec(mu), solution };
-    validate_problem(&local.problem()).map_err(|reason| invalid(path, format!("fclib_local: {reason}")))?;
-    Ok(local)
-}
-
 #[cfg(test)]
 mod tests {
+    use super::super::read_fclib;
     use super::*;
 
     fn temp(name: &str) -> std::path::PathBuf {
@@ -334,6 +207,20 @@ mod tests {
         assert_eq!(sample.mu, written.mu);
     }
 
+    /// fclib's own sample (`src/tests/data/local_problem_test.hdf5` of the fclib repository,
+    /// Apache-2.0): 48 contacts, W as compressed rows, with a solution (r = 0) and guesses.
+    #[test]
+    fn the_fclib_projects_sample_reads() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/problems/formats");
+        let sample = read_fclib(&root.join("fclib-local_problem_test.hdf5")).unwrap();
+        assert_eq!((sample.w.shape(), sample.mu.len()), ((144, 144), 48));
+        assert!(sample.mu.iter().all(|&mu| mu == 0.7));
+        let (u, r) = sample.solution.as_ref().unwrap();
+        assert_eq!((u.len(), r.len()), (144, 144));
+        // Stored as rows of a W symmetric to rounding (its largest entry is 696).
+        assert!((&sample.w - sample.w.transpose()).amax() < 1e-12, "W is not symmetric");
+    }
+
     #[test]
     fn bad_files_are_typed_errors_naming_the_file_and_the_dataset() {
         let path = temp("bad");
@@ -361,7 +248,7 @@ mod tests {
                 .unwrap();
         }
         let text = read_fclib(&path).unwrap_err().to_string();
-        assert!(text.contains("fclib_local/vectors: q has 6 entries and mu 3"), "{text}");
+        assert!(text.contains("fclib_local/vectors/mu: 3 entries, expected 2"), "{text}");
         // A truncated file and a file that is not HDF5.
         write_fclib(&path, &sample()).unwrap();
         let bytes = std::fs::read(&path).unwrap();

@@ -96,7 +96,7 @@ fn vector(x: &[f64], n: usize, name: &str) -> Result<DVector<f64>, String> {
 }
 
 /// Largest magnitude of a problem's numbers (A, b, R, targets, J, M⁻¹Jᵀ).
-const MAX_MAGNITUDE: f64 = 1e100;
+pub(crate) const MAX_MAGNITUDE: f64 = 1e100;
 
 /// Checks that `problem` is consistent: sizes, finite numbers, laws and contact blocks agreeing
 /// (what every solver and [`residuals()`](crate::solvers::residuals()) rely on).

@@ -36,6 +36,8 @@ mod export;
 mod factor;
 #[cfg(feature = "fclib")]
 mod fclib;
+#[cfg(feature = "fclib")]
+mod fclib_read;
 mod json;
 mod npz;
 mod qps;
@@ -62,7 +64,9 @@ pub use corpus_scenes::{corpus_scenes, corpus_world, CorpusScene, CorpusWorld, S
 pub use export::{export_problems, ExportError, ExportKind, ExportOptions, ExportedProblem};
 pub use factor::{pivoted_cholesky, qp_matrix, PivotedCholesky};
 #[cfg(feature = "fclib")]
-pub use fclib::{fclib_of, read_fclib, write_fclib, FclibLocal};
+pub use fclib::{fclib_of, write_fclib, FclibLocal};
+#[cfg(feature = "fclib")]
+pub use fclib_read::{read_fclib, FCLIB_MAX_ENTRIES};
 pub use json::{problem_from_json, problem_to_json, problem_to_json_sparse, validate_problem};
 pub use npz::{lcp_facets, lcp_npz, npy_bytes, npz_bytes, qp_npz, stored_zip};
 pub use qps::{parse_qps, qps_text, read_qps, write_qps};
