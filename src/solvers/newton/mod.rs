@@ -29,7 +29,9 @@
 //!
 //! The answer is certified by the shared residuals of the convex relaxation
 //! ([`Residuals::convex`], as clarabel's): a sliding contact satisfies it with the relaxation's
-//! separating normal velocity `w_n = μ ‖w_t‖`. Cone friction only; a pyramid problem is refused.
+//! separating normal velocity `w_n = μ ‖w_t‖`. Friction in the Coulomb cone or in a k-facet
+//! pyramid (MuJoCo's pyramidal cone is the 4-facet one): a pyramid contact's law projects onto
+//! the polyhedral cone, facet by facet (`laws.rs`).
 
 mod anderson;
 mod hessian;
@@ -181,11 +183,6 @@ impl ConstraintSolver for NewtonSolver {
         if n == 0 {
             return Ok(SolveInfo::default());
         }
-        if let FrictionModel::Pyramid { .. } = problem.friction {
-            if problem.contacts.iter().any(|c| c.mu > 0.0 || c.mu2 > 0.0) {
-                return Err(SolverError::InvalidProblem("newton solves cone friction, not a pyramid".into()));
-            }
-        }
         let goal = self.residual_goal.unwrap_or(1e-9);
         let own_rows = !rows::has_rows(problem);
         let nv = if own_rows { n } else { problem.sparsity.nv };
@@ -302,7 +299,12 @@ fn setup_groups(
                 Some(c) => {
                     let contact = &problem.contacts[c];
                     if contact.mu > 0.0 && contact.mu2 > 0.0 {
-                        ws.groups.push(Group::Cone { normal: i, slope: 0.0 });
+                        ws.groups.push(match problem.friction {
+                            FrictionModel::Cone => Group::Cone { normal: i, slope: 0.0 },
+                            FrictionModel::Pyramid { facets } => {
+                                Group::Pyramid { normal: i, facets, mu: contact.mu, mu2: contact.mu2 }
+                            }
+                        });
                     } else if contact.mu == 0.0 && contact.mu2 == 0.0 {
                         ws.groups.push(Group::Row { row: i, lo: 0.0, hi: f64::INFINITY });
                         ws.groups.push(Group::Row { row: i + 1, lo: 0.0, hi: 0.0 });
@@ -435,7 +437,7 @@ fn hessian_blocks(w: &RowSparsity, ws: &mut Workspace, own_rows: bool) {
 }
 
 /// E = max(R, ε d) per row (a floor keeps E > 0 on rows without inertia), the friction rows of a
-/// contact raised to satisfy μ √e₁ = μ₂ √e₂ (its cone is then circular in scaled impulses),
+/// cone contact raised to satisfy μ √e₁ = μ₂ √e₂ (its cone is then circular in scaled impulses),
 /// each cone's slope in scaled impulses, and the proximal weights P = E − R.
 fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
     let n = problem.rows();
@@ -443,7 +445,12 @@ fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
     ws.e.clear();
     ws.e.extend((0..n).map(|i| problem.regularization[i].max(epsilon * ws.diagonal[i].max(floor))));
     for g in 0..ws.groups.len() {
-        if let Group::Cone { normal, .. } = ws.groups[g] {
+        let (normal, cone) = match ws.groups[g] {
+            Group::Cone { normal, .. } => (normal, true),
+            Group::Pyramid { normal, .. } => (normal, false),
+            Group::Row { .. } => continue,
+        };
+        {
             let c = &problem.contacts[contact_of_normal(problem, normal).expect("a contact normal")];
             let (t1, t2) = (normal + 1, normal + 2);
             // A friction row softened relative to its contact's normal (as the world's softness
@@ -454,6 +461,10 @@ fn set_metric(problem: &ConstraintProblem, ws: &mut Workspace, epsilon: f64) {
                 if problem.regularization[t] >= soft_floor {
                     ws.e[t] = problem.regularization[t];
                 }
+            }
+            if !cone {
+                // A pyramid's facets need no particular metric: any E leaves it a polyhedral cone.
+                continue;
             }
             // Only the smaller side is raised (a round trip through μ² would leave the other
             // a rounding error above its R, and a row above its R is a hard one).
