@@ -228,9 +228,9 @@ pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
     let length = bytes.len() as u64;
     let file = hdf5_pure::File::from_bytes(bytes)
         .map_err(|e| refuse(format!("file (not an HDF5 file, or damaged): {e}")))?;
-    // The end the superblock records, past the user block: a shorter file was cut short.
-    let superblock = file.superblock();
-    let end = superblock.base_address.get().saturating_add(superblock.eof_address);
+    // The end the superblock records (`hdf5-pure` gives it from the file's start, past any user
+    // block): a shorter file was cut short.
+    let end = file.superblock().eof_address;
     if end > length {
         return Err(refuse(format!("file (truncated): {length} bytes, its superblock records {end}")));
     }
