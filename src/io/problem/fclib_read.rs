@@ -114,7 +114,7 @@ impl Source<'_> {
             Layout::Contiguous { address: None, .. } => None,
             Layout::Chunked { ref chunk_shape, .. } => {
                 let chunk = chunk_shape.iter().try_fold(1u64, |n, &d| n.checked_mul(d));
-                if !chunk.is_some_and(|n| n <= FCLIB_MAX_ENTRIES as u64) {
+                if chunk.is_none_or(|n| n > FCLIB_MAX_ENTRIES as u64) {
                     return Err(self.invalid(
                         name,
                         format!("chunks of dimensions {chunk_shape:?}: over {FCLIB_MAX_ENTRIES} entries"),
