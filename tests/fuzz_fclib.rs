@@ -76,17 +76,13 @@ const HDF5_TOKENS: &[&str] = &[
     "\u{3}\u{0}\u{0}\u{0}",
 ];
 
-/// The directory of the files under test, with a named pipe in it (`None` where `mkfifo`
-/// fails): external links and external raw data may name it.
-fn workdir() -> &'static (PathBuf, Option<PathBuf>) {
-    static DIR: OnceLock<(PathBuf, Option<PathBuf>)> = OnceLock::new();
+/// The directory of the files under test.
+fn workdir() -> &'static PathBuf {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-fclib");
         std::fs::create_dir_all(&dir).unwrap();
-        let fifo = dir.join("pipe");
-        let made = fifo.exists()
-            || std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
-        (dir, made.then_some(fifo))
+        dir
     })
 }
 
@@ -148,9 +144,8 @@ fn same(a: &FclibLocal, b: &FclibLocal) -> bool {
 }
 
 fn content(plan: &[u8]) -> Verdict {
-    let (dir, fifo) = workdir();
-    let path = case_file("content", dir);
-    let expect = write_case(plan, &path, fifo.as_deref());
+    let path = case_file("content", workdir());
+    let expect = write_case(plan, &path);
     match (read_fclib(&path), expect) {
         (Ok(local), Expect::Local(want)) if !same(&local, &want) => {
             Err(format!("a valid file read as another problem: {local:?}, written {want:?}"))
@@ -163,7 +158,7 @@ fn content(plan: &[u8]) -> Verdict {
 }
 
 fn bytes(input: &[u8]) -> Verdict {
-    let path = case_file("bytes", &workdir().0);
+    let path = case_file("bytes", workdir());
     std::fs::write(&path, input).map_err(|e| format!("{}: {e}", path.display()))?;
     match read_fclib(&path) {
         Ok(local) => check_problem(&local),
@@ -174,20 +169,20 @@ fn bytes(input: &[u8]) -> Verdict {
 #[test]
 fn fuzz_fclib_content() {
     assert!(fuzz("fclib-plan", PLAN_TOKENS, CASE, content) > 0);
-    std::fs::remove_file(case_file("content", &workdir().0)).ok();
+    std::fs::remove_file(case_file("content", workdir())).ok();
 }
 
 #[test]
 fn fuzz_fclib_bytes() {
     assert!(fuzz("fclib", HDF5_TOKENS, CASE, bytes) > 0);
-    std::fs::remove_file(case_file("bytes", &workdir().0)).ok();
+    std::fs::remove_file(case_file("bytes", workdir())).ok();
 }
 
 /// Truncated copies of the corpus's valid files: the reader compares the file's length with the
 /// end its superblock records, so each is refused, and the error names the file.
 #[test]
 fn truncated_files_are_typed_errors() {
-    let path = case_file("truncated", &workdir().0);
+    let path = case_file("truncated", workdir());
     for (name, bytes) in fuzz_support::corpus("fclib") {
         if read_fclib_bytes(&path, &bytes).is_err() {
             continue; // a found-* file, refused whole

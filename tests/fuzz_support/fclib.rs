@@ -7,10 +7,9 @@
 //! chunked and compressed datasets with checksums, the newest file format, a user block), one
 //! byte for the number of contacts, then faults of three bytes each (kind, dataset, value):
 //! datasets removed, set to extreme numbers, resized, stored with another type or shape, replaced
-//! by a group, a soft or external link, a huge unwritten dataset, raw data in an external file;
-//! W made unsymmetric, negative on its diagonal, given duplicate or out-of-range indices;
-//! mixed-problem datasets added, the group renamed, sizes of up to 2³⁰ contacts declared. A
-//! missing byte reads as 0, so an empty plan is a valid problem of no contact.
+//! by a group; W made unsymmetric, negative on its diagonal, given duplicate or out-of-range
+//! indices; mixed-problem datasets added, the group renamed, sizes of up to 2³⁰ contacts
+//! declared. A missing byte reads as 0, so an empty plan is a valid problem of no contact.
 //!
 //! Each fault says what the reader must do with it alone: keep the problem (an option FCLIB
 //! allows: unsorted columns, CSR of a symmetric W, extra datasets), refuse it (a missing dataset,
@@ -18,10 +17,11 @@
 //! written when every fault keeps it, a refusal when the plan's only fault refuses it.
 //!
 //! `hdf5-pure` writes no soft or external link, no dataset left unwritten and no raw data in
-//! another file: those faults leave the object out of the file, which is what the reader sees of
-//! them (`hdf5-pure` follows only hard links, reads no external raw data, and a huge declared
-//! dataset is refused by its declared size alone). Files with each of them, written by libhdf5,
-//! are kept in `tests/data/fclib/` and read by `tests/fuzz_fclib.rs`.
+//! another file: the faults that would make them (kinds 7 to 10) remove the object instead,
+//! which is what the reader sees of them (`hdf5-pure` follows only hard links and reads no
+//! external raw data; a huge declared dataset is refused by its declared size alone). Files with
+//! each of them, written by libhdf5, are kept in `tests/data/fclib/` and read by
+//! `tests/fuzz_fclib.rs`.
 
 use gelenk::io::problem::FclibLocal;
 use hdf5_pure::{EnumTypeBuilder, FileBuilder, FinishedGroup, GroupBuilder, LibVer};
@@ -93,18 +93,9 @@ enum Node {
         shape: Shape,
     },
     Group,
-    Soft(String),
-    External {
-        file: String,
-        path: String,
-    },
-    /// Chunked, of these dimensions, nothing written (fill values).
+    /// Declared with these dimensions and never written: left out of the file, which
+    /// `hdf5-pure` cannot write (the plan's other datasets still declare the huge size).
     Huge(Vec<usize>),
-    /// Contiguous raw data in another file.
-    ExternalRaw {
-        file: String,
-        len: usize,
-    },
 }
 
 fn ints(v: Vec<i64>) -> Node {
@@ -194,8 +185,8 @@ struct Layout {
 }
 
 /// Writes the FCLIB file that `plan` describes at `path` (replacing it) and says what reading
-/// it must give. `fifo`, when given, is a named pipe that external links and raw data may name.
-pub fn write_case(plan: &[u8], path: &Path, fifo: Option<&Path>) -> Expect {
+/// it must give.
+pub fn write_case(plan: &[u8], path: &Path) -> Expect {
     let mut plan = Plan { bytes: plan, at: 0 };
     let mut seed = [0u8; 8];
     seed.iter_mut().for_each(|b| *b = plan.byte());
@@ -210,7 +201,7 @@ pub fn write_case(plan: &[u8], path: &Path, fifo: Option<&Path>) -> Expect {
     let mut faults = 0;
     while !plan.done() && faults < MAX_FAULTS {
         let (kind, target, value) = (plan.byte(), plan.byte(), plan.byte());
-        verdicts.push(apply(&mut layout, &mut rng, kind, usize::from(target), value, fifo));
+        verdicts.push(apply(&mut layout, &mut rng, kind, usize::from(target), value));
         faults += 1;
     }
     match write(&layout, path, options) {
@@ -324,14 +315,7 @@ fn scalar_of(nodes: &BTreeMap<String, Node>, name: &str) -> Option<i64> {
 }
 
 /// Applies one fault and says what it asks of the reader.
-fn apply(
-    layout: &mut Layout,
-    rng: &mut StdRng,
-    kind: u8,
-    target: usize,
-    value: u8,
-    fifo: Option<&Path>,
-) -> Verdict {
+fn apply(layout: &mut Layout, rng: &mut StdRng, kind: u8, target: usize, value: u8) -> Verdict {
     let name = TARGETS[target % TARGETS.len()];
     let required =
         TARGETS[..REQUIRED].contains(&name) || (name.starts_with("fclib_local") && !name.ends_with("nzmax"));
@@ -347,8 +331,10 @@ fn apply(
     let outside =
         |why| if required || (in_solution && has_solution) { Verdict::Refuse(why) } else { Verdict::Either };
     match kind % 16 {
-        // Removed (with everything beneath).
-        2 => {
+        // Removed (with everything beneath). Also what the reader sees of the objects
+        // `hdf5-pure` does not write (see the module's notes): a soft or external link (7, 8), a
+        // huge dataset declared and never written (9), raw data in another file (10).
+        2 | 7..=10 => {
             if !nodes.keys().any(|k| k == name || k.starts_with(&format!("{name}/"))) {
                 return Verdict::Keep;
             }
@@ -467,53 +453,6 @@ fn apply(
             nodes.retain(|k, _| !k.starts_with(&format!("{name}/")));
             nodes.insert(name.into(), if was_group { ints(vec![3]) } else { Node::Group });
             outside("a group where a dataset belongs, or the reverse")
-        }
-        // A soft link: to itself, to nothing, to another dataset of the problem.
-        7 => {
-            let to = match value % 3 {
-                0 => format!("/{name}"),
-                1 => "/nowhere".into(),
-                _ => format!("/{}", TARGETS[value % REQUIRED]),
-            };
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::Soft(to));
-            if value % 3 < 2 {
-                outside("a soft link to itself or to nothing")
-            } else {
-                Verdict::Either
-            }
-        }
-        // An external link: to a missing file, to a file that is not HDF5, to a named pipe.
-        8 => {
-            let file = match (value % 3, fifo) {
-                (0, _) | (2, None) => "/nonexistent/fclib.hdf5".to_string(),
-                (1, _) => "/dev/null".to_string(),
-                (2, Some(f)) => f.display().to_string(),
-                _ => unreachable!(),
-            };
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::External { file, path: format!("/{name}") });
-            outside("a dataset that is an external link to no HDF5 file")
-        }
-        // A huge dataset, declared and never written.
-        9 => {
-            let dims = [vec![1 << 28], vec![1 << 40], vec![1 << 31, 1 << 31], vec![usize::MAX >> 8]]
-                [value % 4]
-                .clone();
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::Huge(dims));
-            outside("a dataset of a huge declared size")
-        }
-        // Raw data in an external file: /dev/zero, a named pipe.
-        10 => {
-            let Some(Node::Data { values, .. }) = nodes.get(name) else { return Verdict::Either };
-            let len = values.len().max(1);
-            let file = match fifo {
-                Some(f) if value % 2 == 1 => f.display().to_string(),
-                _ => "/dev/zero".to_string(),
-            };
-            nodes.insert(name.into(), Node::ExternalRaw { file, len });
-            Verdict::Either
         }
         // W changed before it is written: unsymmetric, negative diagonal, duplicate or
         // out-of-range indices, unsorted columns, CSR of the same arrays.
