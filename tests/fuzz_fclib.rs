@@ -2,18 +2,23 @@
 //! `docs/reliability.md`), two targets on the harness of `fuzz_support`:
 //!
 //! - `fuzz_fclib_content`: structure-aware. Each input is a plan (`fuzz_support::fclib`) from
-//!   which libhdf5 writes a well-formed HDF5 file with hostile FCLIB content (sizes that
+//!   which `hdf5-pure` writes a well-formed HDF5 file with hostile FCLIB content (sizes that
 //!   disagree, W unsymmetric or with indices out of range, non-finite numbers, missing, extra,
-//!   mistyped or huge datasets, links). Reading it must give what the plan implies: the problem
+//!   mistyped datasets). Reading it must give what the plan implies: the problem
 //!   to the last bit when every fault is one FCLIB allows, a typed error when one fault alone
 //!   makes the file invalid, and otherwise either a typed error or a consistent problem.
 //! - `fuzz_fclib_bytes`: truncated and corrupted copies of valid files
-//!   (`tests/fuzz_corpus/fclib/`): libhdf5 must report the damage, and gelenk a typed error.
+//!   (`tests/fuzz_corpus/fclib/`): the damage must be a typed error.
+//!
+//! HDF5 is parsed by `hdf5-pure`, in Rust and in this process: a panic in it fails the target
+//! like one in gelenk. The files of `tests/data/fclib/` (libhdf5's own crash and hang inputs,
+//! and objects `hdf5-pure` does not write: soft and external links, external raw data, a huge
+//! unwritten dataset) are read by `tests_data_files_are_typed_errors`.
 //!
 //! Every error must name the file; every problem read must be finite, of consistent sizes, and,
 //! when small, solved by every corpus solver to finite numbers. The file under test is
 //! `<target tmp>/fuzz-fclib/{content,bytes}-<process id>.hdf5`, removed when the target ends
-//! well: after a case that kills the process (libhdf5 crashing), it holds that case's input.
+//! well: after a case that kills the process, it holds that case's input.
 //!
 //! `cargo test --profile ci --features fclib --test fuzz_fclib`; an hour per target:
 //! `GELENK_FUZZ_SECONDS=3600 GELENK_FUZZ_SEED=random cargo test --profile ci --features fclib --test fuzz_fclib -- --test-threads 1`.
@@ -71,17 +76,13 @@ const HDF5_TOKENS: &[&str] = &[
     "\u{3}\u{0}\u{0}\u{0}",
 ];
 
-/// The directory of the files under test, with a named pipe in it (`None` where `mkfifo`
-/// fails): external links and external raw data may name it.
-fn workdir() -> &'static (PathBuf, Option<PathBuf>) {
-    static DIR: OnceLock<(PathBuf, Option<PathBuf>)> = OnceLock::new();
+/// The directory of the files under test.
+fn workdir() -> &'static PathBuf {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-fclib");
         std::fs::create_dir_all(&dir).unwrap();
-        let fifo = dir.join("pipe");
-        let made = fifo.exists()
-            || std::process::Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success());
-        (dir, made.then_some(fifo))
+        dir
     })
 }
 
@@ -143,9 +144,8 @@ fn same(a: &FclibLocal, b: &FclibLocal) -> bool {
 }
 
 fn content(plan: &[u8]) -> Verdict {
-    let (dir, fifo) = workdir();
-    let path = case_file("content", dir);
-    let expect = write_case(plan, &path, fifo.as_deref());
+    let path = case_file("content", workdir());
+    let expect = write_case(plan, &path);
     match (read_fclib(&path), expect) {
         (Ok(local), Expect::Local(want)) if !same(&local, &want) => {
             Err(format!("a valid file read as another problem: {local:?}, written {want:?}"))
@@ -158,7 +158,7 @@ fn content(plan: &[u8]) -> Verdict {
 }
 
 fn bytes(input: &[u8]) -> Verdict {
-    let path = case_file("bytes", &workdir().0);
+    let path = case_file("bytes", workdir());
     std::fs::write(&path, input).map_err(|e| format!("{}: {e}", path.display()))?;
     match read_fclib(&path) {
         Ok(local) => check_problem(&local),
@@ -169,20 +169,20 @@ fn bytes(input: &[u8]) -> Verdict {
 #[test]
 fn fuzz_fclib_content() {
     assert!(fuzz("fclib-plan", PLAN_TOKENS, CASE, content) > 0);
-    std::fs::remove_file(case_file("content", &workdir().0)).ok();
+    std::fs::remove_file(case_file("content", workdir())).ok();
 }
 
 #[test]
 fn fuzz_fclib_bytes() {
     assert!(fuzz("fclib", HDF5_TOKENS, CASE, bytes) > 0);
-    std::fs::remove_file(case_file("bytes", &workdir().0)).ok();
+    std::fs::remove_file(case_file("bytes", workdir())).ok();
 }
 
-/// Truncated copies of the corpus's valid files: libhdf5 compares the file's length with the
-/// end its superblock records, so each is refused, and gelenk's error names the file.
+/// Truncated copies of the corpus's valid files: the reader compares the file's length with the
+/// end its superblock records, so each is refused, and the error names the file.
 #[test]
 fn truncated_files_are_typed_errors() {
-    let path = case_file("truncated", &workdir().0);
+    let path = case_file("truncated", workdir());
     for (name, bytes) in fuzz_support::corpus("fclib") {
         if read_fclib_bytes(&path, &bytes).is_err() {
             continue; // a found-* file, refused whole
@@ -201,4 +201,40 @@ fn truncated_files_are_typed_errors() {
 fn read_fclib_bytes(path: &Path, bytes: &[u8]) -> Result<FclibLocal, ProblemFileError> {
     std::fs::write(path, bytes).unwrap();
     read_fclib(path)
+}
+
+/// The files of `tests/data/fclib/`, each with the dataset its error must name: libhdf5's crash
+/// and hang inputs (a damaged local heap), links the reader does not follow, raw data outside the
+/// file, a dataset declared with 2⁴⁰ entries and never written.
+#[test]
+fn tests_data_files_are_typed_errors() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fclib");
+    let cases = [
+        ("libhdf5-1.10.8-crash-local-heap.hdf5", ""),
+        ("libhdf5-1.10.8-hang-local-heap.hdf5", ""),
+        // hdf5-pure 0.47 reads a soft link of a version 1 group as an undefined address.
+        ("link-soft-mu-v1-groups.hdf5", "fclib_local/vectors/mu: "),
+        ("link-soft-mu-v2-groups.hdf5", "fclib_local/vectors/mu: missing"),
+        ("link-soft-vectors-v1-groups.hdf5", "fclib_local/vectors/"),
+        ("link-soft-vectors-v2-groups.hdf5", "fclib_local/vectors/"),
+        ("link-external-mu-v1-groups.hdf5", "fclib_local/vectors/mu: missing"),
+        ("link-external-mu-v2-groups.hdf5", "fclib_local/vectors/mu: missing"),
+        ("external-raw-mu.hdf5", "fclib_local/vectors/mu: "),
+        ("unwritten-huge-q.hdf5", "fclib_local/vectors/q: declared with dimensions [1099511627776]"),
+    ];
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|name| name.ends_with(".hdf5"))
+        .collect();
+    files.sort();
+    let mut named: Vec<String> = cases.iter().map(|(name, _)| name.to_string()).collect();
+    named.sort();
+    assert_eq!(files, named, "every file of {} has a case here", dir.display());
+    for (name, field) in cases {
+        let path = dir.join(name);
+        let error = read_fclib(&path).expect_err(name);
+        check_error(&error, &path).unwrap();
+        assert!(error.to_string().contains(field), "{name}: {error}");
+    }
 }

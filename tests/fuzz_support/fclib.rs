@@ -1,24 +1,30 @@
 //! FCLIB-shaped HDF5 files built from a fuzzer's bytes, for the structure-aware target of
 //! `tests/fuzz_fclib.rs`: what gelenk owns is what its reader does with well-formed HDF5 holding
-//! hostile FCLIB content, so libhdf5 writes every file and the bytes choose the content.
+//! hostile FCLIB content, so `hdf5-pure` writes every file and the bytes choose the content.
 //!
 //! A plan is read as: 8 bytes seeding the numbers (a symmetric positive definite W, q, μ and a
 //! solution), one byte of options (compressed columns or triplets, a solution, an info group,
 //! chunked and compressed datasets with checksums, the newest file format, a user block), one
 //! byte for the number of contacts, then faults of three bytes each (kind, dataset, value):
 //! datasets removed, set to extreme numbers, resized, stored with another type or shape, replaced
-//! by a group, a soft or external link, a huge unwritten dataset, raw data in an external file;
-//! W made unsymmetric, negative on its diagonal, given duplicate or out-of-range indices;
-//! mixed-problem datasets added, the group renamed, sizes of up to 2³⁰ contacts declared. A
-//! missing byte reads as 0, so an empty plan is a valid problem of no contact.
+//! by a group; W made unsymmetric, negative on its diagonal, given duplicate or out-of-range
+//! indices; mixed-problem datasets added, the group renamed, sizes of up to 2³⁰ contacts
+//! declared. A missing byte reads as 0, so an empty plan is a valid problem of no contact.
 //!
 //! Each fault says what the reader must do with it alone: keep the problem (an option FCLIB
 //! allows: unsorted columns, CSR of a symmetric W, extra datasets), refuse it (a missing dataset,
 //! a non-finite number, an index out of range), or either. [`Expect`] combines them: the problem
 //! written when every fault keeps it, a refusal when the plan's only fault refuses it.
+//!
+//! `hdf5-pure` writes no soft or external link, no dataset left unwritten and no raw data in
+//! another file: the faults that would make them (kinds 7 to 10) remove the object instead,
+//! which is what the reader sees of them (`hdf5-pure` follows only hard links and reads no
+//! external raw data; a huge declared dataset is refused by its declared size alone). Files with
+//! each of them, written by libhdf5, are kept in `tests/data/fclib/` and read by
+//! `tests/fuzz_fclib.rs`.
 
 use gelenk::io::problem::FclibLocal;
-use hdf5::types::{FloatSize, IntSize, TypeDescriptor, VarLenUnicode};
+use hdf5_pure::{EnumTypeBuilder, FileBuilder, FinishedGroup, GroupBuilder, LibVer};
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -54,6 +60,20 @@ impl Values {
     }
 }
 
+/// The type a dataset's values are stored as (converted on writing as libhdf5 converts:
+/// integers clamped to the type's range, numbers rounded, NaN as 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Stored {
+    I8,
+    I32,
+    I64,
+    U64,
+    F32,
+    F64,
+    /// HDF5's boolean: an enumeration FALSE = 0, TRUE = 1 over a byte.
+    Bool,
+}
+
 /// How a dataset's values are laid out in the file.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Shape {
@@ -69,30 +89,17 @@ enum Shape {
 enum Node {
     Data {
         values: Values,
-        stored: Option<TypeDescriptor>,
+        stored: Option<Stored>,
         shape: Shape,
     },
     Group,
-    Soft(String),
-    External {
-        file: String,
-        path: String,
-    },
-    /// Chunked, of these dimensions, nothing written (fill values).
+    /// Declared with these dimensions and never written: left out of the file, which
+    /// `hdf5-pure` cannot write (the plan's other datasets still declare the huge size).
     Huge(Vec<usize>),
-    /// Contiguous raw data in another file.
-    ExternalRaw {
-        file: String,
-        len: usize,
-    },
 }
 
 fn ints(v: Vec<i64>) -> Node {
-    Node::Data {
-        values: Values::Int(v),
-        stored: Some(TypeDescriptor::Integer(IntSize::U4)),
-        shape: Shape::Vector,
-    }
+    Node::Data { values: Values::Int(v), stored: Some(Stored::I32), shape: Shape::Vector }
 }
 
 fn floats(v: &[f64]) -> Node {
@@ -178,8 +185,8 @@ struct Layout {
 }
 
 /// Writes the FCLIB file that `plan` describes at `path` (replacing it) and says what reading
-/// it must give. `fifo`, when given, is a named pipe that external links and raw data may name.
-pub fn write_case(plan: &[u8], path: &Path, fifo: Option<&Path>) -> Expect {
+/// it must give.
+pub fn write_case(plan: &[u8], path: &Path) -> Expect {
     let mut plan = Plan { bytes: plan, at: 0 };
     let mut seed = [0u8; 8];
     seed.iter_mut().for_each(|b| *b = plan.byte());
@@ -194,15 +201,14 @@ pub fn write_case(plan: &[u8], path: &Path, fifo: Option<&Path>) -> Expect {
     let mut faults = 0;
     while !plan.done() && faults < MAX_FAULTS {
         let (kind, target, value) = (plan.byte(), plan.byte(), plan.byte());
-        verdicts.push(apply(&mut layout, &mut rng, kind, usize::from(target), value, fifo));
+        verdicts.push(apply(&mut layout, &mut rng, kind, usize::from(target), value));
         faults += 1;
     }
-    if let Err(e) = write(&layout, path, options) {
-        // A layout libhdf5 refuses to write (a dataset under a dataset, say) is still a file.
-        if !path.exists() {
-            panic!("{}: libhdf5 wrote no file: {e}", path.display());
-        }
-        return Expect::Either;
+    match write(&layout, path, options) {
+        Err(e) => panic!("{}: hdf5-pure wrote no file: {e}", path.display()),
+        // Objects under a dataset (or under a link) are left out: the file is not the layout.
+        Ok(false) => return Expect::Either,
+        Ok(true) => {}
     }
     let refusals: Vec<&str> = verdicts
         .iter()
@@ -309,14 +315,7 @@ fn scalar_of(nodes: &BTreeMap<String, Node>, name: &str) -> Option<i64> {
 }
 
 /// Applies one fault and says what it asks of the reader.
-fn apply(
-    layout: &mut Layout,
-    rng: &mut StdRng,
-    kind: u8,
-    target: usize,
-    value: u8,
-    fifo: Option<&Path>,
-) -> Verdict {
+fn apply(layout: &mut Layout, rng: &mut StdRng, kind: u8, target: usize, value: u8) -> Verdict {
     let name = TARGETS[target % TARGETS.len()];
     let required =
         TARGETS[..REQUIRED].contains(&name) || (name.starts_with("fclib_local") && !name.ends_with("nzmax"));
@@ -332,8 +331,10 @@ fn apply(
     let outside =
         |why| if required || (in_solution && has_solution) { Verdict::Refuse(why) } else { Verdict::Either };
     match kind % 16 {
-        // Removed (with everything beneath).
-        2 => {
+        // Removed (with everything beneath). Also what the reader sees of the objects
+        // `hdf5-pure` does not write (see the module's notes): a soft or external link (7, 8), a
+        // huge dataset declared and never written (9), raw data in another file (10).
+        2 | 7..=10 => {
             if !nodes.keys().any(|k| k == name || k.starts_with(&format!("{name}/"))) {
                 return Verdict::Keep;
             }
@@ -420,23 +421,23 @@ fn apply(
                 outside("a dataset of the wrong length")
             }
         }
-        // Stored with another type (converted by libhdf5 on writing).
+        // Stored with another type (converted on writing).
         4 => {
             let Some(Node::Data { stored, values, .. }) = nodes.get_mut(name) else { return Verdict::Either };
             let types = [
-                Some(TypeDescriptor::Integer(IntSize::U1)),
-                Some(TypeDescriptor::Integer(IntSize::U8)),
-                Some(TypeDescriptor::Unsigned(IntSize::U8)),
-                Some(TypeDescriptor::Float(FloatSize::U4)),
-                Some(TypeDescriptor::Float(FloatSize::U8)),
-                Some(TypeDescriptor::Boolean),
+                Some(Stored::I8),
+                Some(Stored::I64),
+                Some(Stored::U64),
+                Some(Stored::F32),
+                Some(Stored::F64),
+                Some(Stored::Bool),
                 None,
             ];
             if value % 8 == 7 {
                 *values = Values::Text("3".into());
                 return outside("text where numbers belong");
             }
-            *stored = types[value % 8 % types.len()].clone();
+            *stored = types[value % 8 % types.len()];
             Verdict::Either
         }
         // Stored with another shape.
@@ -452,53 +453,6 @@ fn apply(
             nodes.retain(|k, _| !k.starts_with(&format!("{name}/")));
             nodes.insert(name.into(), if was_group { ints(vec![3]) } else { Node::Group });
             outside("a group where a dataset belongs, or the reverse")
-        }
-        // A soft link: to itself, to nothing, to another dataset of the problem.
-        7 => {
-            let to = match value % 3 {
-                0 => format!("/{name}"),
-                1 => "/nowhere".into(),
-                _ => format!("/{}", TARGETS[value % REQUIRED]),
-            };
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::Soft(to));
-            if value % 3 < 2 {
-                outside("a soft link to itself or to nothing")
-            } else {
-                Verdict::Either
-            }
-        }
-        // An external link: to a missing file, to a file that is not HDF5, to a named pipe.
-        8 => {
-            let file = match (value % 3, fifo) {
-                (0, _) | (2, None) => "/nonexistent/fclib.hdf5".to_string(),
-                (1, _) => "/dev/null".to_string(),
-                (2, Some(f)) => f.display().to_string(),
-                _ => unreachable!(),
-            };
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::External { file, path: format!("/{name}") });
-            outside("a dataset that is an external link to no HDF5 file")
-        }
-        // A huge dataset, declared and never written.
-        9 => {
-            let dims = [vec![1 << 28], vec![1 << 40], vec![1 << 31, 1 << 31], vec![usize::MAX >> 8]]
-                [value % 4]
-                .clone();
-            remove_tree(nodes, name);
-            nodes.insert(name.into(), Node::Huge(dims));
-            outside("a dataset of a huge declared size")
-        }
-        // Raw data in an external file: /dev/zero, a named pipe.
-        10 => {
-            let Some(Node::Data { values, .. }) = nodes.get(name) else { return Verdict::Either };
-            let len = values.len().max(1);
-            let file = match fifo {
-                Some(f) if value % 2 == 1 => f.display().to_string(),
-                _ => "/dev/zero".to_string(),
-            };
-            nodes.insert(name.into(), Node::ExternalRaw { file, len });
-            Verdict::Either
         }
         // W changed before it is written: unsymmetric, negative diagonal, duplicate or
         // out-of-range indices, unsorted columns, CSR of the same arrays.
@@ -703,96 +657,158 @@ fn matrix_fault(layout: &mut Layout, rng: &mut StdRng, value: usize) -> Verdict 
     }
 }
 
-/// Writes `layout` with libhdf5: options bit 3 chunks and compresses every dataset (deflate,
+/// Writes `layout` with `hdf5-pure`: options bit 3 chunks and compresses every dataset (deflate,
 /// shuffle, Fletcher-32 checksums), bit 4 asks for the newest file format, bit 5 a user block.
-fn write(layout: &Layout, path: &Path, options: u8) -> hdf5::Result<()> {
-    let mut builder = hdf5::File::with_options();
+/// `Ok(false)` when objects had to be left out (under a dataset or a link; links, unwritten
+/// datasets and external raw data themselves are left out silently: see the module's notes).
+fn write(layout: &Layout, path: &Path, options: u8) -> Result<bool, hdf5_pure::Error> {
+    let mut file = FileBuilder::new();
     if options & 16 != 0 {
-        builder.with_fapl(|p| p.libver_latest());
+        file.with_libver_bounds(LibVer::LATEST, LibVer::LATEST);
     }
     if options & 32 != 0 {
-        builder.with_fcpl(|p| p.userblock(512));
+        file.with_userblock(512);
     }
-    let file = builder.create(path)?;
-    for (name, node) in &layout.nodes {
-        let (parent, leaf) = match name.rsplit_once('/') {
-            Some((parent, leaf)) => (group(&file, parent)?, leaf),
-            None => (file.as_group()?, name.as_str()),
-        };
-        match node {
-            Node::Group => {
-                if !parent.link_exists(leaf) {
-                    parent.create_group(leaf)?;
-                }
-            }
-            Node::Soft(to) => parent.link_soft(to, leaf)?,
-            Node::External { file, path } => parent.link_external(file, path, leaf)?,
-            Node::Huge(dims) => {
-                let chunk: Vec<usize> = dims.iter().map(|_| 1024).collect();
-                parent.new_dataset::<f64>().chunk(chunk).shape(dims.clone()).create(leaf)?;
-            }
-            Node::ExternalRaw { file, len } => {
-                parent.new_dataset::<f64>().external(file, 0, len * 8).shape([*len]).create(leaf)?;
-            }
-            Node::Data { values, stored, shape } => {
-                data(&parent, leaf, values, stored.as_ref(), *shape, layout.chunked)?
-            }
-        }
-    }
-    Ok(())
+    let whole = fill(&mut file, "", &layout.nodes, layout.chunked);
+    file.write(path)?;
+    Ok(whole)
 }
 
-/// The group at `path`, created with its parents when missing.
-fn group(file: &hdf5::File, path: &str) -> hdf5::Result<hdf5::Group> {
-    let mut at = file.as_group()?;
-    for part in path.split('/') {
-        at = if at.link_exists(part) { at.group(part)? } else { at.create_group(part)? };
+/// A group being built: the file's root or a group under it.
+trait Parent {
+    fn dataset(&mut self, name: &str) -> &mut hdf5_pure::DatasetBuilder;
+    fn group(&mut self, name: &str) -> GroupBuilder;
+    fn add(&mut self, group: FinishedGroup);
+}
+
+impl Parent for FileBuilder {
+    fn dataset(&mut self, name: &str) -> &mut hdf5_pure::DatasetBuilder {
+        self.create_dataset(name)
     }
-    Ok(at)
+    fn group(&mut self, name: &str) -> GroupBuilder {
+        self.create_group(name)
+    }
+    fn add(&mut self, group: FinishedGroup) {
+        self.add_group(group)
+    }
+}
+
+impl Parent for GroupBuilder {
+    fn dataset(&mut self, name: &str) -> &mut hdf5_pure::DatasetBuilder {
+        self.create_dataset(name)
+    }
+    fn group(&mut self, name: &str) -> GroupBuilder {
+        self.create_group(name)
+    }
+    fn add(&mut self, group: FinishedGroup) {
+        self.add_group(group)
+    }
+}
+
+/// Adds the objects of `nodes` under `prefix` (`""`: the root, else ending in `/`) to `parent`,
+/// groups implied by deeper paths included; whether nothing had to be left out.
+fn fill(parent: &mut dyn Parent, prefix: &str, nodes: &BTreeMap<String, Node>, chunked: bool) -> bool {
+    let children: std::collections::BTreeSet<&str> = nodes
+        .keys()
+        .filter_map(|k| k.strip_prefix(prefix))
+        .map(|rest| rest.split('/').next().unwrap_or(rest))
+        .collect();
+    let mut whole = true;
+    for child in children {
+        let path = format!("{prefix}{child}");
+        let below = format!("{path}/");
+        let deeper = nodes.keys().any(|k| k.starts_with(&below));
+        match nodes.get(&path) {
+            None | Some(Node::Group) => {
+                let mut group = parent.group(child);
+                whole &= fill(&mut group, &below, nodes, chunked);
+                parent.add(group.finish());
+            }
+            Some(Node::Data { values, stored, shape }) => {
+                data(parent, child, values, *stored, *shape, chunked);
+                whole &= !deeper;
+            }
+            Some(_) => whole &= !deeper,
+        }
+    }
+    whole
+}
+
+/// `x` as an integer of `lo..=hi`, as libhdf5 converts (clamped, NaN as 0).
+fn clamp_int(x: f64, lo: i64, hi: i64) -> i64 {
+    if x.is_nan() {
+        0
+    } else {
+        (x as i64).clamp(lo, hi)
+    }
 }
 
 fn data(
-    parent: &hdf5::Group,
+    parent: &mut dyn Parent,
     leaf: &str,
     values: &Values,
-    stored: Option<&TypeDescriptor>,
+    stored: Option<Stored>,
     shape: Shape,
     chunked: bool,
-) -> hdf5::Result<()> {
-    let n = values.len();
-    let extents = match shape {
-        Shape::Vector => hdf5::Extents::simple([n]),
-        Shape::Column => hdf5::Extents::simple([n, 1]),
-        Shape::Row => hdf5::Extents::simple([1, n]),
-        Shape::Scalar if n == 1 => hdf5::Extents::scalar(),
-        Shape::Scalar => hdf5::Extents::simple([n]),
-        Shape::Null => hdf5::Extents::null(),
+) {
+    let builder = parent.dataset(leaf);
+    let mut numbers: Vec<f64> = match values {
+        Values::Text(t) => {
+            builder.with_vlen_strings(&[t.as_str()]).with_shape(&[]);
+            return;
+        }
+        Values::Int(v) => v.iter().map(|&x| x as f64).collect(),
+        Values::Float(v) => v.clone(),
     };
-    let native = match values {
-        Values::Int(_) => TypeDescriptor::Integer(IntSize::U8),
-        Values::Float(_) => TypeDescriptor::Float(FloatSize::U8),
-        Values::Text(_) => TypeDescriptor::VarLenUnicode,
+    let mut integers: Vec<i64> = match values {
+        Values::Int(v) => v.clone(),
+        _ => numbers.iter().map(|&x| clamp_int(x, i64::MIN, i64::MAX)).collect(),
     };
-    let dtype = stored.cloned().unwrap_or(native);
-    let mut builder = parent.new_dataset_builder().empty_as(&dtype).shape(extents.clone());
-    if chunked && extents.is_simple() && n > 0 {
-        let chunk: Vec<usize> = extents.dims().iter().map(|&d| d.clamp(1, 64)).collect();
-        builder = parent
-            .new_dataset_builder()
-            .empty_as(&dtype)
-            .chunk(chunk)
-            .deflate(4)
-            .shuffle()
-            .fletcher32()
-            .shape(extents.clone());
+    if shape == Shape::Null {
+        // hdf5-pure writes no null dataspace: no entries at all, as close as it gets.
+        (numbers, integers) = (Vec::new(), Vec::new());
     }
-    let dataset = builder.create(leaf)?;
-    if shape == Shape::Null || n == 0 {
-        return Ok(());
+    let native = if matches!(values, Values::Int(_)) { Stored::I64 } else { Stored::F64 };
+    let clamped = |lo: i64, hi: i64| integers.iter().map(move |&x| x.clamp(lo, hi));
+    match stored.unwrap_or(native) {
+        Stored::I8 => builder
+            .with_i8_data(&clamped(i8::MIN.into(), i8::MAX.into()).map(|x| x as i8).collect::<Vec<_>>()),
+        Stored::I32 => builder
+            .with_i32_data(&clamped(i32::MIN.into(), i32::MAX.into()).map(|x| x as i32).collect::<Vec<_>>()),
+        Stored::I64 => builder.with_i64_data(&integers),
+        Stored::U64 => builder.with_u64_data(&clamped(0, i64::MAX).map(|x| x as u64).collect::<Vec<_>>()),
+        Stored::F32 => builder.with_f32_data(&numbers.iter().map(|&x| x as f32).collect::<Vec<_>>()),
+        Stored::F64 => builder.with_f64_data(&numbers),
+        Stored::Bool => {
+            let boolean = EnumTypeBuilder::u8_based().u8_value("FALSE", 0).u8_value("TRUE", 1).build();
+            let bytes: Vec<u8> = integers.iter().map(|&x| u8::from(x != 0)).collect();
+            match boolean {
+                Ok(boolean) => builder.with_enum_u8_data(boolean, &bytes),
+                Err(_) => builder.with_u8_data(&bytes),
+            }
+        }
+    };
+    let n = numbers.len() as u64;
+    match shape {
+        Shape::Vector => {}
+        Shape::Column => {
+            builder.with_shape(&[n, 1]);
+        }
+        Shape::Row => {
+            builder.with_shape(&[1, n]);
+        }
+        Shape::Scalar if n == 1 => {
+            builder.with_shape(&[]);
+        }
+        Shape::Scalar => {}
+        Shape::Null => {}
     }
-    match values {
-        Values::Int(v) => dataset.write_raw(v.as_slice()),
-        Values::Float(v) => dataset.write_raw(v.as_slice()),
-        Values::Text(t) => dataset.write_raw(&[t.parse::<VarLenUnicode>().unwrap_or_default()][..]),
+    if chunked && n > 0 && shape != Shape::Null && !(shape == Shape::Scalar && n == 1) {
+        let chunk: Vec<u64> = match shape {
+            Shape::Column => vec![n.clamp(1, 64), 1],
+            Shape::Row => vec![1, n.clamp(1, 64)],
+            _ => vec![n.clamp(1, 64)],
+        };
+        builder.with_chunks(&chunk).with_deflate(4).with_shuffle().with_fletcher32();
     }
 }

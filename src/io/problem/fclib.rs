@@ -17,7 +17,8 @@
 //! Only problems of contact blocks alone, with isotropic friction (μ = μ₂), have this form
 //! ([`fclib_of`] says why not otherwise). [`read_fclib`](super::read_fclib) (in `fclib_read`) also
 //! reads W as compressed rows (`nz = −2`, as fclib's own sample file) and triplets (`nz ≥ 0`).
-//! HDF5 is the system's C library: the `fclib` cargo feature, `apt-get install libhdf5-dev`.
+//! HDF5 is read and written in Rust by `hdf5-pure` (no C library); files are written in the
+//! format of HDF5 1.8 (version 2 superblock), which libhdf5 1.8 and later, h5py and fclib read.
 
 use super::{validate_problem, ProblemFileError};
 use crate::constraints::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw, RowOrigin};
@@ -89,10 +90,6 @@ fn invalid(path: &Path, reason: String) -> ProblemFileError {
     ProblemFileError::Invalid { path: path.to_path_buf(), reason }
 }
 
-fn h5(path: &Path, field: &str, e: hdf5::Error) -> ProblemFileError {
-    invalid(path, format!("{field}: {e}"))
-}
-
 /// Writes `local` as an FCLIB file at `path` (replacing it).
 pub fn write_fclib(path: &Path, local: &FclibLocal) -> Result<(), ProblemFileError> {
     let m = local.q.len();
@@ -115,36 +112,33 @@ pub fn write_fclib(path: &Path, local: &FclibLocal) -> Result<(), ProblemFileErr
         }
         p.push(int(rows.len(), "W/nzmax")?);
     }
-    let write = || -> Result<(), (&'static str, hdf5::Error)> {
-        let file = hdf5::File::create(path).map_err(|e| ("file", e))?;
-        let root = file.create_group("fclib_local").map_err(|e| ("/fclib_local", e))?;
-        let ints = |g: &hdf5::Group, name: &'static str, x: &[i32]| {
-            g.new_dataset_builder().with_data(x).create(name).map(|_| ()).map_err(|e| (name, e))
-        };
-        let doubles = |g: &hdf5::Group, name: &'static str, x: &[f64]| {
-            g.new_dataset_builder().with_data(x).create(name).map(|_| ()).map_err(|e| (name, e))
-        };
-        ints(&root, "spacedim", &[3])?;
-        let w = root.create_group("W").map_err(|e| ("W", e))?;
-        let (m32, nnz) = (m as i32, values.len() as i32);
-        ints(&w, "nzmax", &[nnz])?;
-        ints(&w, "m", &[m32])?;
-        ints(&w, "n", &[m32])?;
-        ints(&w, "nz", &[-1])?;
-        ints(&w, "p", &p)?;
-        ints(&w, "i", &rows)?;
-        doubles(&w, "x", &values)?;
-        let vectors = root.create_group("vectors").map_err(|e| ("vectors", e))?;
-        doubles(&vectors, "q", local.q.as_slice())?;
-        doubles(&vectors, "mu", local.mu.as_slice())?;
-        if let Some((u, r)) = &local.solution {
-            let solution = file.create_group("solution").map_err(|e| ("/solution", e))?;
-            doubles(&solution, "u", u.as_slice())?;
-            doubles(&solution, "r", r.as_slice())?;
-        }
-        Ok(())
-    };
-    write().map_err(|(field, e)| h5(path, field, e))
+    let (m32, nnz) = (int(m, "W/m")?, int(values.len(), "W/nzmax")?);
+    let mut file = hdf5_pure::FileBuilder::new();
+    // HDF5 1.8's format (version 2 superblock): what libhdf5 1.8 and later read.
+    file.with_libver_bounds(hdf5_pure::LibVer::Earliest, hdf5_pure::LibVer::V18);
+    let mut root = file.create_group("fclib_local");
+    root.create_dataset("spacedim").with_i32_data(&[3]);
+    let mut w = root.create_group("W");
+    w.create_dataset("nzmax").with_i32_data(&[nnz]);
+    w.create_dataset("m").with_i32_data(&[m32]);
+    w.create_dataset("n").with_i32_data(&[m32]);
+    w.create_dataset("nz").with_i32_data(&[-1]);
+    w.create_dataset("p").with_i32_data(&p);
+    w.create_dataset("i").with_i32_data(&rows);
+    w.create_dataset("x").with_f64_data(&values);
+    root.add_group(w.finish());
+    let mut vectors = root.create_group("vectors");
+    vectors.create_dataset("q").with_f64_data(local.q.as_slice());
+    vectors.create_dataset("mu").with_f64_data(local.mu.as_slice());
+    root.add_group(vectors.finish());
+    file.add_group(root.finish());
+    if let Some((u, r)) = &local.solution {
+        let mut solution = file.create_group("solution");
+        solution.create_dataset("u").with_f64_data(u.as_slice());
+        solution.create_dataset("r").with_f64_data(r.as_slice());
+        file.add_group(solution.finish());
+    }
+    file.write(path).map_err(|e| invalid(path, format!("file: {e}")))
 }
 
 #[cfg(test)]
@@ -238,14 +232,15 @@ mod tests {
         // Mismatched dimensions: μ of a third contact, written by hand.
         write_fclib(&path, &sample()).unwrap();
         {
-            let file = hdf5::File::open_rw(&path).unwrap();
-            file.unlink("fclib_local/vectors/mu").unwrap();
+            let file = hdf5_pure::File::open_rw(&path).unwrap();
+            file.root().delete("fclib_local/vectors/mu").unwrap();
             file.group("fclib_local/vectors")
                 .unwrap()
-                .new_dataset_builder()
-                .with_data(&[0.1, 0.2, 0.3][..])
-                .create("mu")
+                .create_dataset("mu", |b| {
+                    b.with_f64_data(&[0.1, 0.2, 0.3]);
+                })
                 .unwrap();
+            file.commit().unwrap();
         }
         let text = read_fclib(&path).unwrap_err().to_string();
         assert!(text.contains("fclib_local/vectors/mu: 3 entries, expected 2"), "{text}");

@@ -1,17 +1,21 @@
 //! The FCLIB reader ([`read_fclib`]): a local problem of a file written by fclib, Siconos or
-//! gelenk, read from untrusted input. HDF5 is parsed by libhdf5; this module decides what the
-//! file's objects may be before anything is read or allocated for them:
+//! gelenk, read from untrusted input. HDF5 is parsed in Rust by `hdf5-pure` (no C library), from
+//! the file's bytes in memory; this module decides what the file's objects may be before anything
+//! is read or allocated for them:
 //!
-//! - the file is a regular file (a named pipe would block libhdf5 in `open`);
+//! - the file is a regular file (a named pipe would block its read) of at most
+//!   [`FCLIB_MAX_FILE_BYTES`], whose superblock does not record a longer file (a truncated file);
 //! - every object read is reached through hard links only, and every dataset keeps its data in
-//!   the file (no external link, soft link, external raw data or virtual dataset: each can name
-//!   another file, a device or a pipe);
+//!   the file: `hdf5-pure` follows no soft or external link (a dataset behind one is missing)
+//!   and reads no external raw data or virtual dataset (each could name another file, a device
+//!   or a pipe);
 //! - a dataset's declared size is checked before it is read: at most [`FCLIB_MAX_ENTRIES`]
-//!   entries, and exactly as many as W's size implies where it implies one; W, held dense, has at
-//!   most [`FCLIB_MAX_ENTRIES`] entries; data stored in one block (compact, or contiguous and
-//!   written) has exactly the entries' size (a damaged layout recording less crashes libhdf5
-//!   1.10 in its read);
-//! - integers (sizes, indices) are stored as integers and numbers as floating-point numbers;
+//!   entries (and chunks of at most as many), and exactly as many as W's size implies where it
+//!   implies one; W, held dense, has at most [`FCLIB_MAX_ENTRIES`] entries; data stored in one
+//!   block (compact, or contiguous and written) has exactly the entries' size; a read gives
+//!   exactly the declared number of entries;
+//! - integers (sizes, indices) are stored as integers (an unsigned one beyond `i64` is refused)
+//!   and numbers as floating-point numbers;
 //! - indices lie in range, compressed pointers start at 0 and never decrease, a compressed
 //!   column or row holds each index once, W is finite,
 //!   within ±1e100, symmetric and not negative on its diagonal, q likewise bounded, μ finite and
@@ -22,14 +26,18 @@
 use super::fclib::FclibLocal;
 use super::json::MAX_MAGNITUDE;
 use super::{validate_problem, ProblemFileError};
-use hdf5::types::TypeDescriptor;
-use hdf5::{IndexType, IterationOrder, LinkType};
+use hdf5_pure::{DType, FormatError, Layout};
 use nalgebra::{DMatrix, DVector};
 use std::path::Path;
 
 /// Most entries of any dataset the reader loads, and of W held dense (m² ≤ 5·10⁷: up to 7071
 /// rows, 2357 contacts); a file declaring more is refused before anything is allocated for it.
 pub const FCLIB_MAX_ENTRIES: usize = 50_000_000;
+
+/// Largest FCLIB file read (bytes, 1 GiB): the whole file is read into memory before it is
+/// parsed, so a larger one is refused first. W of [`FCLIB_MAX_ENTRIES`] entries, all stored as
+/// compressed columns of 8-byte numbers and 4-byte indices, takes 600 MB.
+pub const FCLIB_MAX_FILE_BYTES: u64 = 1 << 30;
 
 /// Integers or floating-point numbers, the two kinds of FCLIB's datasets.
 #[derive(Clone, Copy, PartialEq)]
@@ -40,8 +48,15 @@ enum Kind {
 
 /// An open FCLIB file and its path, for errors naming both the file and the dataset.
 struct Source<'a> {
-    file: hdf5::File,
+    file: hdf5_pure::File,
     path: &'a Path,
+}
+
+/// What a missing object is called: `hdf5-pure` reaches objects through hard links only.
+const MISSING: &str = "missing (the reader follows only the file's own hard links, no soft or external link)";
+
+fn not_found(e: &hdf5_pure::Error) -> bool {
+    matches!(e, hdf5_pure::Error::Format(FormatError::PathNotFound(_)))
 }
 
 impl Source<'_> {
@@ -49,86 +64,85 @@ impl Source<'_> {
         ProblemFileError::Invalid { path: self.path.to_path_buf(), reason: format!("{field}: {reason}") }
     }
 
-    /// Whether `name` (a path from the root) exists; `Err` when a part of it is a link other than
-    /// a hard one or an intermediate part is not a group.
+    /// Whether object `name` (a path from the root: a group or a dataset) exists, reached through
+    /// hard links only; `Err` when the file's structure on the way cannot be read.
     fn exists(&self, name: &str) -> Result<bool, ProblemFileError> {
-        let mut group = self.file.as_group().map_err(|e| self.invalid("/", e))?;
-        let parts: Vec<&str> = name.split('/').collect();
-        for (k, part) in parts.iter().enumerate() {
-            let here = parts[..=k].join("/");
-            let link = group
-                .find_link(IndexType::Name, IterationOrder::Native, |n, info| {
-                    Ok((n == *part).then_some(info.link_type))
-                })
-                .map_err(|e| self.invalid(&here, e))?;
-            match link {
-                None => return Ok(false),
-                Some(LinkType::Hard) => {}
-                Some(kind) => {
-                    let kind = if kind == LinkType::Soft { "soft" } else { "external" };
-                    return Err(self.invalid(
-                        &here,
-                        format!("a {kind} link; the reader follows only the file's own (hard) links"),
-                    ));
-                }
-            }
-            if k + 1 < parts.len() {
-                group = group.group(part).map_err(|e| self.invalid(&here, format!("not a group ({e})")))?;
-            }
+        match self.file.group(name) {
+            Ok(_) => return Ok(true),
+            Err(e) if not_found(&e) => return Ok(false),
+            Err(_) => {}
         }
-        Ok(true)
+        match self.file.dataset(name) {
+            Ok(_) => Ok(true),
+            Err(e) if not_found(&e) => Ok(false),
+            Err(e) => Err(self.invalid(name, e)),
+        }
     }
 
     /// Dataset `name`, its data stored in the file, and its number of entries (checked against
     /// [`FCLIB_MAX_ENTRIES`] from its declared dimensions, before any read).
-    fn dataset(&self, name: &str, kind: Kind) -> Result<(hdf5::Dataset, usize), ProblemFileError> {
-        if !self.exists(name)? {
-            return Err(self.invalid(name, "missing"));
-        }
-        let dataset = self.file.dataset(name).map_err(|e| self.invalid(name, e))?;
-        let layout = dataset.dcpl().map_err(|e| self.invalid(name, e))?;
-        use hdf5::dataset::Layout;
-        if !matches!(layout.layout(), Layout::Compact | Layout::Contiguous | Layout::Chunked)
-            || !layout.external().is_empty()
-        {
-            return Err(self.invalid(name, "its data lies outside the file (external or virtual storage)"));
-        }
-        let space = dataset.space().map_err(|e| self.invalid(name, e))?;
-        let extents = space.extents().map_err(|e| self.invalid(name, e))?;
-        let declared = match &extents {
-            hdf5::Extents::Null => Some(0),
-            hdf5::Extents::Scalar => Some(1),
-            hdf5::Extents::Simple(dims) => dims.dims().iter().try_fold(1usize, |n, &d| n.checked_mul(d)),
-        };
-        // libhdf5's count of the entries, which sizes the buffer of a read, must be the same.
-        let len = declared.filter(|&n| n <= FCLIB_MAX_ENTRIES && n == space.size()).ok_or_else(|| {
-            self.invalid(
-                name,
-                format!("declared with dimensions {:?}: over {FCLIB_MAX_ENTRIES} entries", extents.dims()),
-            )
+    fn dataset(&self, name: &str, kind: Kind) -> Result<(hdf5_pure::Dataset, usize), ProblemFileError> {
+        let dataset = self.file.dataset(name).map_err(|e| {
+            if not_found(&e) {
+                self.invalid(name, MISSING)
+            } else {
+                self.invalid(name, e)
+            }
         })?;
-        let dtype = dataset.dtype().map_err(|e| self.invalid(name, e))?;
-        // Data in one block fills exactly its entries: a damaged layout that records less makes
-        // libhdf5 1.10 copy from beyond its buffer (SIGSEGV). A compact block (in the object
-        // header) is always there; a contiguous one may be unallocated, when never written (the
-        // dataset then reads as its fill value, as fclib's own sample's solution/r).
-        let bytes = (len as u64).saturating_mul(dtype.size() as u64);
-        let stored_bytes = dataset.storage_size();
-        let whole = match layout.layout() {
-            Layout::Compact => stored_bytes == bytes,
-            Layout::Contiguous => stored_bytes == bytes || stored_bytes == 0,
-            _ => true,
+        let dims = dataset.shape().map_err(|e| self.invalid(name, e))?;
+        // A scalar has no dimensions and one entry (a null dataspace too: its read gives none,
+        // which `read` refuses).
+        let declared = dims.iter().try_fold(1u64, |n, &d| n.checked_mul(d));
+        let len = declared
+            .and_then(|n| usize::try_from(n).ok())
+            .filter(|&n| n <= FCLIB_MAX_ENTRIES)
+            .ok_or_else(|| {
+                self.invalid(
+                    name,
+                    format!("declared with dimensions {dims:?}: over {FCLIB_MAX_ENTRIES} entries"),
+                )
+            })?;
+        let size = dataset.element_size().map_err(|e| self.invalid(name, e))?;
+        let bytes = (len as u64).saturating_mul(size);
+        // Data in one block fills exactly its entries. A compact block (in the object header) is
+        // always there; a contiguous one may be unallocated, when never written (the dataset then
+        // reads as its fill value, as fclib's own sample's solution/r).
+        let layout = dataset.layout().map_err(|e| self.invalid(name, e))?;
+        let stored = match layout {
+            Layout::Compact { size } => Some(size),
+            Layout::Contiguous { address: Some(_), size } => Some(size),
+            Layout::Contiguous { address: None, .. } => None,
+            Layout::Chunked { ref chunk_shape, .. } => {
+                let chunk = chunk_shape.iter().try_fold(1u64, |n, &d| n.checked_mul(d));
+                if chunk.is_none_or(|n| n > FCLIB_MAX_ENTRIES as u64) {
+                    return Err(self.invalid(
+                        name,
+                        format!("chunks of dimensions {chunk_shape:?}: over {FCLIB_MAX_ENTRIES} entries"),
+                    ));
+                }
+                None
+            }
+            _ => {
+                return Err(self.invalid(name, "its data lies outside the file (external or virtual storage)"))
+            }
         };
-        if !whole {
-            return Err(self.invalid(
-                name,
-                format!("{len} entries of {} bytes stored in {stored_bytes} bytes", dtype.size()),
-            ));
+        if let Some(stored) = stored.filter(|&stored| stored != bytes) {
+            return Err(self.invalid(name, format!("{len} entries of {size} bytes stored in {stored} bytes")));
         }
-        let stored = dtype.to_descriptor().map_err(|e| self.invalid(name, e))?;
+        let stored = dataset.dtype().map_err(|e| self.invalid(name, e))?;
         let fits = match kind {
-            Kind::Int => matches!(stored, TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_)),
-            Kind::Float => matches!(stored, TypeDescriptor::Float(_)),
+            Kind::Int => matches!(
+                stored,
+                DType::I8
+                    | DType::I16
+                    | DType::I32
+                    | DType::I64
+                    | DType::U8
+                    | DType::U16
+                    | DType::U32
+                    | DType::U64
+            ),
+            Kind::Float => matches!(stored, DType::F32 | DType::F64),
         };
         if !fits {
             let expected = if kind == Kind::Int { "integers" } else { "floating-point numbers" };
@@ -142,18 +156,43 @@ impl Source<'_> {
         self.dataset(name, kind).map(|(_, len)| len)
     }
 
+    /// `values`, read from dataset `name` of `len` declared entries, when they are as many.
+    fn read<T>(
+        &self,
+        name: &str,
+        len: usize,
+        values: Result<Vec<T>, hdf5_pure::Error>,
+    ) -> Result<Vec<T>, ProblemFileError> {
+        let values = values.map_err(|e| self.invalid(name, e))?;
+        if values.len() != len {
+            return Err(self.invalid(name, format!("{} entries read of {len} declared", values.len())));
+        }
+        Ok(values)
+    }
+
     /// The integers of dataset `name`; exactly `want` of them when given.
     fn ints(&self, name: &str, want: Option<usize>) -> Result<Vec<i64>, ProblemFileError> {
         let (dataset, len) = self.dataset(name, Kind::Int)?;
         self.expect(name, len, want)?;
-        dataset.read_raw::<i64>().map_err(|e| self.invalid(name, e))
+        if matches!(dataset.dtype(), Ok(DType::U64)) {
+            let values = self.read(name, len, dataset.read_u64())?;
+            return values
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| {
+                    i64::try_from(v)
+                        .map_err(|_| self.invalid(name, format!("entry {k} is {v}, beyond 64-bit integers")))
+                })
+                .collect();
+        }
+        self.read(name, len, dataset.read_i64())
     }
 
     /// The numbers of dataset `name`; exactly `want` of them when given.
     fn doubles(&self, name: &str, want: Option<usize>) -> Result<Vec<f64>, ProblemFileError> {
         let (dataset, len) = self.dataset(name, Kind::Float)?;
         self.expect(name, len, want)?;
-        dataset.read_raw::<f64>().map_err(|e| self.invalid(name, e))
+        self.read(name, len, dataset.read_f64())
     }
 
     fn expect(&self, name: &str, len: usize, want: Option<usize>) -> Result<(), ProblemFileError> {
@@ -175,20 +214,26 @@ impl Source<'_> {
 /// repeated, a W that is not symmetric or negative on its diagonal, numbers that are not finite
 /// or beyond ±1e100, a negative μ; the module documentation lists every rule.
 pub fn read_fclib(path: &Path) -> Result<FclibLocal, ProblemFileError> {
-    match std::fs::metadata(path) {
-        Err(source) => return Err(ProblemFileError::Read { path: path.to_path_buf(), source }),
-        Ok(meta) if !meta.is_file() => {
-            return Err(ProblemFileError::Invalid {
-                path: path.to_path_buf(),
-                reason: "not a regular file (an FCLIB file is read from disk)".into(),
-            })
-        }
-        Ok(_) => {}
+    let meta = std::fs::metadata(path)
+        .map_err(|source| ProblemFileError::Read { path: path.to_path_buf(), source })?;
+    let refuse = |reason: String| ProblemFileError::Invalid { path: path.to_path_buf(), reason };
+    if !meta.is_file() {
+        return Err(refuse("not a regular file (an FCLIB file is read from disk)".into()));
     }
-    let file = hdf5::File::open(path).map_err(|e| ProblemFileError::Invalid {
-        path: path.to_path_buf(),
-        reason: format!("file (not an HDF5 file, or damaged): {e}"),
-    })?;
+    if meta.len() > FCLIB_MAX_FILE_BYTES {
+        return Err(refuse(format!("file: {} bytes, over the {FCLIB_MAX_FILE_BYTES} read", meta.len())));
+    }
+    let bytes =
+        std::fs::read(path).map_err(|source| ProblemFileError::Read { path: path.to_path_buf(), source })?;
+    let length = bytes.len() as u64;
+    let file = hdf5_pure::File::from_bytes(bytes)
+        .map_err(|e| refuse(format!("file (not an HDF5 file, or damaged): {e}")))?;
+    // The end the superblock records (`hdf5-pure` gives it from the file's start, past any user
+    // block): a shorter file was cut short.
+    let end = file.superblock().eof_address;
+    if end > length {
+        return Err(refuse(format!("file (truncated): {length} bytes, its superblock records {end}")));
+    }
     let source = Source { file, path };
     if !source.exists("fclib_local")? {
         let global = source.exists("fclib_global")? || source.exists("fclib_global_rolling")?;
@@ -316,7 +361,7 @@ fn matrix(source: &Source, m: usize) -> Result<DMatrix<f64>, ProblemFileError> {
                     source.invalid("fclib_local/W/x", format!("{len} entries for nz = {nz} triplets"))
                 );
             }
-            let x = dataset.read_raw::<f64>().map_err(|e| source.invalid("fclib_local/W/x", e))?;
+            let x = source.read("fclib_local/W/x", len, dataset.read_f64())?;
             for k in 0..count {
                 w[(index(i[k], "i")?, index(p[k], "p")?)] += finite_entry(source, x[k], k)?;
             }

@@ -66,7 +66,7 @@ pub use factor::{pivoted_cholesky, qp_matrix, PivotedCholesky};
 #[cfg(feature = "fclib")]
 pub use fclib::{fclib_of, write_fclib, FclibLocal};
 #[cfg(feature = "fclib")]
-pub use fclib_read::{read_fclib, FCLIB_MAX_ENTRIES};
+pub use fclib_read::{read_fclib, FCLIB_MAX_ENTRIES, FCLIB_MAX_FILE_BYTES};
 pub use json::{problem_from_json, problem_to_json, problem_to_json_sparse, validate_problem};
 pub use npz::{lcp_facets, lcp_npz, npy_bytes, npz_bytes, qp_npz, stored_zip};
 pub use qps::{parse_qps, qps_text, read_qps, write_qps};
