@@ -14,7 +14,10 @@ use parry3d_f64::shape::{PackedFeatureId, Shape as ParryShape};
 /// one end of an axis and rock onto the other end: with the closest point alone, the contact
 /// jumps from one end to the other between steps and the end that was not a contact sinks into
 /// the other capsule (a ragdoll's abdomen on another's, 5 mm in one 2 ms step). Ends within half
-/// the smaller radius of a point already found are not added again. Leaves `manifolds[0]`.
+/// the smaller radius of a point already found are not added again, nor is an end whose normal
+/// opposes parry's (capsules so deep in each other that their axes overlap: the two ends of one
+/// axis then see the other axis on opposite sides, and rows demanding separation both ways have
+/// no solution). Leaves `manifolds[0]`.
 pub(super) fn add_axis_ends(
     pos_ab: &Pose,
     shape_a: &dyn ParryShape,
@@ -31,6 +34,7 @@ pub(super) fn add_axis_ends(
     let (b0, b1) = (*pos_ab * b.segment.a, *pos_ab * b.segment.b);
     let near = 0.5 * a.radius.min(b.radius);
     let mut used = 1;
+    let primary = manifolds.first().filter(|m| !m.points.is_empty()).map(|m| m.local_n1);
     let ends = [(a0, b0, b1, true), (a1, b0, b1, true), (b0, a0, a1, false), (b1, a0, a1, false)];
     for (k, (end, s0, s1, of_a)) in ends.into_iter().enumerate() {
         let on_axis = closest_on_segment(end, s0, s1);
@@ -41,6 +45,9 @@ pub(super) fn add_axis_ends(
         }
         let (on_a, on_b) = if of_a { (end, on_axis) } else { (on_axis, end) };
         let n1 = (on_b - on_a) / axis_gap;
+        if primary.is_some_and(|primary| n1.dot(primary) <= 0.0) {
+            continue;
+        }
         let p1 = on_a + n1 * a.radius;
         if manifolds[..used].iter().any(|m| m.points.iter().any(|c| (c.local_p1 - p1).length() <= near)) {
             continue;
@@ -112,5 +119,21 @@ mod tests {
         let far = Pose::from_parts(Vector::new(0.0, 0.0, 2.0 * r + 0.008), rotation);
         dispatch(ShapeKind::Capsule, &capsule, ShapeKind::Capsule, &capsule, &far, 0.01, &mut state).unwrap();
         assert_eq!(state.manifolds.iter().map(|m| m.points.len()).sum::<usize>(), 1);
+    }
+    /// Two upright capsules so deep in each other that B's short axis lies within A's: the two
+    /// ends of A's axis see B's axis below and above. No end contact opposes parry's normal (a
+    /// pair of rows demanding separation both ways has no solution: every solver failed on it).
+    #[test]
+    fn capsules_whose_axes_overlap_get_no_opposed_normals() {
+        use parry3d_f64::shape::Capsule;
+        let (a, b) = (Capsule::new_z(0.5, 1.0), Capsule::new_z(0.016, 1.0));
+        let pos_ab = Pose::from_parts(Vector::new(0.0, 0.0, -0.427), Rotation::IDENTITY);
+        let mut state = PairState::default();
+        dispatch(ShapeKind::Capsule, &a, ShapeKind::Capsule, &b, &pos_ab, 0.01, &mut state).unwrap();
+        let primary = state.manifolds[0].local_n1;
+        assert!(!state.manifolds[0].points.is_empty());
+        for m in &state.manifolds {
+            assert!(m.local_n1.dot(primary) > 0.0, "normal {:?} against {primary:?}", m.local_n1);
+        }
     }
 }
