@@ -243,6 +243,30 @@ fn project_on_pyramid(
 mod tests {
     use super::*;
 
+    /// G (row-major 3 × 3) of `group` at `y` equals central finite differences of −λ(y).
+    fn assert_derivative(
+        group: &Group,
+        y: [f64; 3],
+        e: &[f64],
+        inv_sqrt_e: &[f64],
+        g: &[f64; 9],
+        label: &str,
+    ) {
+        for k in 0..3 {
+            let step = 1e-7;
+            let (mut yp, mut ym) = (y, y);
+            yp[k] += step;
+            ym[k] -= step;
+            let (mut lp, mut lm) = ([0.0; 3], [0.0; 3]);
+            project(group, &yp, e, inv_sqrt_e, &mut lp, None);
+            project(group, &ym, e, inv_sqrt_e, &mut lm, None);
+            for a in 0..3 {
+                let fd = -(lp[a] - lm[a]) / (2.0 * step);
+                assert!((fd - g[3 * a + k]).abs() < 1e-6, "{label}: G[{a}][{k}] {} vs {fd}", g[3 * a + k]);
+            }
+        }
+    }
+
     /// λ(y) of the cone is the E-metric projection: it lies in the cone, and its derivative
     /// G matches finite differences of −λ in every zone.
     #[test]
@@ -259,24 +283,7 @@ mod tests {
             let mut g = [0.0; 9];
             zones.push(project(&group, &y, &e, &inv_sqrt_e, &mut l, Some(&mut g)));
             assert!((l[1] * l[1] + l[2] * l[2]).sqrt() <= mu * l[0] + 1e-12, "{l:?} outside the cone");
-            for k in 0..3 {
-                let step = 1e-7;
-                let (mut yp, mut ym) = (y, y);
-                yp[k] += step;
-                ym[k] -= step;
-                let (mut lp, mut lm) = ([0.0; 3], [0.0; 3]);
-                project(&group, &yp, &e, &inv_sqrt_e, &mut lp, None);
-                project(&group, &ym, &e, &inv_sqrt_e, &mut lm, None);
-                for a in 0..3 {
-                    let fd = -(lp[a] - lm[a]) / (2.0 * step);
-                    assert!(
-                        (fd - g[3 * a + k]).abs() < 1e-6,
-                        "zone {:?}: G[{a}][{k}] {} vs {fd}",
-                        zones.last(),
-                        g[3 * a + k]
-                    );
-                }
-            }
+            assert_derivative(&group, y, &e, &inv_sqrt_e, &g, &format!("zone {:?}", zones.last()));
         }
         assert!(
             zones.contains(&Zone::Interior) && zones.contains(&Zone::Free) && zones.contains(&Zone::Boundary)
@@ -351,23 +358,7 @@ mod tests {
                         }
                     }
                 }
-                for k in 0..3 {
-                    let step = 1e-7;
-                    let (mut yp, mut ym) = (y, y);
-                    yp[k] += step;
-                    ym[k] -= step;
-                    let (mut lp, mut lm) = ([0.0; 3], [0.0; 3]);
-                    project(&group, &yp, &e, &inv_sqrt_e, &mut lp, None);
-                    project(&group, &ym, &e, &inv_sqrt_e, &mut lm, None);
-                    for a in 0..3 {
-                        let fd = -(lp[a] - lm[a]) / (2.0 * step);
-                        assert!(
-                            (fd - g[3 * a + k]).abs() < 1e-6,
-                            "k {facets} zone {zone:?}: G[{a}][{k}] {} vs {fd}",
-                            g[3 * a + k]
-                        );
-                    }
-                }
+                assert_derivative(&group, y, &e, &inv_sqrt_e, &g, &format!("k {facets} zone {zone:?}"));
             }
         }
         for wanted in [Zone::Interior, Zone::Free] {
