@@ -38,6 +38,9 @@ pub struct RunOptions {
     /// Threads the islands of each step are solved on instead of `[world] threads`
     /// ([`crate::world::World::set_threads`]; ≥ 1).
     pub threads: Option<usize>,
+    /// The contacts' position correction after each step on or off instead of `[world]
+    /// contact_projection` ([`crate::world::WorldOptions::contact_projection`]).
+    pub contact_projection: Option<bool>,
 }
 
 /// Most steps one [`run`] takes: 10⁹ steps are hours of any scene; more is a typo in `duration` or
@@ -225,8 +228,8 @@ pub struct RunSummary {
     /// Mean iterations (or pivots) per solved step.
     pub mean_iterations: f64,
     /// Wall-clock seconds per phase of the step, summed: kinematics, collision, free motion, rows
-    /// and assembly, solve, integration and sleeping.
-    pub phase_time: [f64; 6],
+    /// and assembly, solve, integration and sleeping, contact projection.
+    pub phase_time: [f64; 7],
     /// The recorded trajectory.
     #[serde(skip)]
     pub recording: Recording,
@@ -269,6 +272,10 @@ pub fn run(
     }
     if let Some(threads) = options.threads {
         scene.world.set_threads(threads).map_err(|e| SceneError::Options(e.to_string()))?;
+    }
+    if let Some(enabled) = options.contact_projection {
+        let projection = scene.world.options().contact_projection;
+        scene.world.set_contact_projection(crate::world::ContactProjection { enabled, ..projection });
     }
     let duration = options.duration.unwrap_or(scene.duration);
     if !(duration.is_finite() && duration >= 0.0) {

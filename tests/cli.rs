@@ -344,7 +344,7 @@ fn simulate_prints_its_summary_and_records_the_states() {
     let solved = v["solved_steps"].as_u64().unwrap();
     let used: u64 = v["solver_usage"].as_object().unwrap().values().map(|n| n.as_u64().unwrap()).sum();
     assert_eq!(used, solved, "every step with rows took one solver's answer");
-    assert_eq!(v["phase_time"].as_array().unwrap().len(), 6);
+    assert_eq!(v["phase_time"].as_array().unwrap().len(), 7);
     let drift = v["energy_end"].as_f64().unwrap() - v["energy_start"].as_f64().unwrap();
     assert_eq!(v["energy_drift"].as_f64().unwrap(), drift);
     assert!(v.get("recording").is_none(), "the recording goes to --out, not into the summary");

@@ -17,8 +17,9 @@ pub enum Recipe {
     /// An MJCF scene, as [`MjcfScene::into_world`] with its own options.
     Mjcf(MjcfScene),
     /// One model as the world's only multibody, at its neutral configuration, optionally on the
-    /// ground plane z = 0; `meshes` says where collision meshes are and what a missing one does.
-    Model { model: Model, options: WorldOptions, ground: bool, meshes: MeshOptions },
+    /// ground plane z = 0; `meshes` says where collision meshes are and what a missing one does
+    /// (the options boxed: they are most of the variant's size).
+    Model { model: Model, options: Box<WorldOptions>, ground: bool, meshes: MeshOptions },
     /// A built-in scene of [`gelenk::scenes::scene_world`].
     BuiltIn(String),
 }
@@ -32,7 +33,7 @@ impl Recipe {
                 scene.clone().into_world(options).map_err(|e| e.to_string())
             }
             Recipe::Model { model, options, ground, meshes } => {
-                let mut world = World::new(options.clone());
+                let mut world = World::new(options.as_ref().clone());
                 if *ground {
                     let plane = Shape::HalfSpace { normal: Vec3::z() };
                     world

@@ -137,7 +137,7 @@ impl PyWorld {
             }
         };
         let name = model.name().to_string();
-        let recipe = Arc::new(Recipe::Model { model, options, ground, meshes });
+        let recipe = Arc::new(Recipe::Model { model, options: Box::new(options), ground, meshes });
         let world = recipe.build().map_err(PyValueError::new_err)?;
         Ok(Self::wrap(Sim::World { world: Box::new(world), recipe }, name))
     }

@@ -131,6 +131,13 @@ impl Collider {
     pub fn is_patch_contact(&self) -> bool {
         self.patch
     }
+    /// The shape's frame in the body frame (world for static geometry) and the radius (m) of a
+    /// ball about that frame's origin holding the shape (infinite for unbounded shapes): a
+    /// motion of the body moves no point of the collider further than the frame's origin moves
+    /// plus the turn (rad) times this radius.
+    pub(crate) fn bounding_ball(&self) -> (&Transform, f64) {
+        (&self.local, self.radius)
+    }
 }
 
 /// One contact point between colliders A and B, in the world frame.

@@ -5,10 +5,13 @@
 //! `src/world/stages/`: check state finite → kinematics → collision → free motion → constraint
 //! rows and their problem → solve and velocity update (warm-started, `warm_start.rs`) → rows for
 //! the speculative contacts and limit stops that the solved velocity closes, and solve again →
-//! integrate q on the manifold (free origins on straight lines, see
-//! [`crate::model::Joint::integrate_decoupled`]) and close the loop closures at the new
-//! configuration (SHAKE, [`LoopProjection`]; a linkage whose only rows are its own closures is
-//! stepped by RATTLE instead, `rattle.rs`) → sleeping (`sleep.rs`) and statistics ([`StepStats`]).
+//! the contacts' position correction from their predicted gaps ([`ContactProjection`],
+//! `contact_projection.rs`) → integrate q on the manifold (free origins on straight lines, see
+//! [`crate::model::Joint::integrate_decoupled`]), the correction included, and close the loop
+//! closures at the new configuration (SHAKE, [`LoopProjection`]; a linkage whose only rows are
+//! its own closures is stepped by RATTLE instead, `rattle.rs`) → the contacts detected again at
+//! the new configuration when the step moved them, and corrected again → sleeping (`sleep.rs`)
+//! and statistics ([`StepStats`]).
 //! Steps without any row skip the solver (and, without implicit springs or damping, use ABA
 //! instead of CRBA); sleeping islands are skipped entirely. With an integrator other than the
 //! default semi-implicit Euler ([`WorldOptions::integrator`]), steps without contacts, limits,
@@ -21,6 +24,7 @@
 //! (`stages/speculation.rs`), the problem and its solve (`stages/solve.rs`), sleeping islands,
 //! and the statistics of the last step.
 
+mod contact_projection;
 mod contact_rows;
 mod dofs;
 pub mod gyroscopic;
@@ -38,6 +42,7 @@ mod stats;
 mod tests;
 mod warm_start;
 
+pub use contact_projection::{ContactProjection, ProjectionStats};
 pub use multibody::{Motor, Multibody, PoseServo, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
 pub use projection::LoopProjection;
@@ -137,6 +142,12 @@ pub struct World {
     speculation: SpeculationState,
     /// The solver chain, the step's problem and its impulses, the warm start.
     solve: Solve,
+    /// The contacts' position correction after the solve ([`WorldOptions::contact_projection`]).
+    projector: contact_projection::ContactProjector,
+    /// The contacts at the end of a step, their rows and problem (the projection's check).
+    end_contacts: contact_projection::EndContacts,
+    /// The sweeps' statistics and diagnostics of the step's detection.
+    sweep_record: (crate::collision::SweepStats, Vec<crate::collision::SweepDiagnostic>),
     /// The integrators of smooth steps, built at the first smooth step.
     smooth: smooth::SmoothSteppers,
     islands: sleep::Islands,
@@ -165,6 +176,9 @@ impl World {
         Self {
             collision: CollisionWorld::new(options.collision),
             solve: Solve::new(&options),
+            projector: contact_projection::ContactProjector::default(),
+            end_contacts: contact_projection::EndContacts::new(),
+            sweep_record: Default::default(),
             rows: RowAssembly::new(ProblemBuilder::new(0, options.friction)),
             materials: Materials::new(options.contact),
             options,
@@ -286,6 +300,12 @@ impl World {
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
     pub fn set_integrator(&mut self, integrator: IntegratorKind) {
         self.options.integrator = integrator;
+    }
+
+    /// Replaces the contacts' position correction after each step
+    /// ([`WorldOptions::contact_projection`]) from the next step on.
+    pub fn set_contact_projection(&mut self, projection: ContactProjection) {
+        self.options.contact_projection = projection;
     }
 
     /// Turns the automatic sweeping of fast colliders on or off
@@ -541,6 +561,9 @@ impl World {
             h,
             sweeps,
         )?;
+        self.sweep_record.0 = self.collision.sweep_stats();
+        self.sweep_record.1.clear();
+        self.sweep_record.1.extend_from_slice(self.collision.sweep_diagnostics());
         timer.lap(Phase::Collision);
         let smooth = self.prepare_smooth_step();
         let has_rows = self.free_motion(h, smooth)?;
@@ -550,7 +573,17 @@ impl World {
         let report = if solve { Some(self.solve_problem()?) } else { None };
         let report = self.speculation_passes(h, report)?;
         timer.lap(Phase::Solve);
+        self.project_contacts(h, report.is_some());
+        timer.lap(Phase::Projection);
         self.integrate(h, smooth)?;
+        timer.lap(Phase::Integrate);
+        if !smooth {
+            self.check_end_contacts(h)?;
+        }
+        timer.lap(Phase::Projection);
+        stages::integrate::commit(&mut self.bodies, h);
+        self.time += h;
+        self.steps += 1;
         self.sleep(h);
         let diagnostics = self.diagnostics();
         timer.lap(Phase::Integrate);
@@ -596,8 +629,22 @@ impl World {
         solve
     }
 
-    /// Stage 8: every multibody's new state (see [`stages::integrate`]), committed with the
-    /// world's time.
+    /// Stage 8, first: the contacts' position correction of the step from their predicted gaps
+    /// (see [`contact_projection`]), into the multibodies' `position_correction`; `solved`: the
+    /// step's problem was solved and its impulses applied.
+    fn project_contacts(&mut self, h: f64, solved: bool) {
+        let inputs = contact_projection::ProjectionInputs {
+            problem: &self.solve.problem,
+            partition: self.solve.islands.partition(),
+            contacts: &self.contacts,
+            velocity: &self.dofs.v_free,
+            block_owner: &self.dofs.block_owner,
+            collision: &self.collision,
+        };
+        self.projector.run(inputs, &mut self.bodies, &self.options, h, solved);
+    }
+
+    /// Stage 8: every multibody's new state (see [`stages::integrate`]), not yet committed.
     fn integrate(&mut self, h: f64, smooth: bool) -> Result<(), StepError> {
         let steppers = smooth.then_some(&mut self.smooth);
         let (v, projection) = (&self.dofs.v_free, &self.options.loop_projection);
@@ -615,9 +662,6 @@ impl World {
             &sources,
             h,
         )?;
-        stages::integrate::commit(&mut self.bodies, h);
-        self.time += h;
-        self.steps += 1;
         Ok(())
     }
 
@@ -658,8 +702,9 @@ impl World {
             diagnostics,
             timer,
             integrator,
-            (self.collision.sweep_stats(), self.collision.sweep_diagnostics()),
+            (self.sweep_record.0, &self.sweep_record.1),
             (self.solve.islands.count, self.solve.islands.largest),
+            self.projector.stats,
         );
     }
 

@@ -132,6 +132,17 @@ pub struct Multibody {
     /// The velocity after the step's first solve, while the world solves again
     /// ([`super::World::step`]'s check after the solve).
     pub(crate) v_solved: DVector<f64>,
+    /// The contact projection's displacement of this step (rad or m per dof, in the tangent
+    /// space at the step's start, as `h · v_next` is), added to the step's displacement
+    /// `h · v_next` when q is integrated ([`Multibody::integrate_step`]); meaningful only while
+    /// `corrected` ([`super::contact_projection`]).
+    pub(crate) position_correction: DVector<f64>,
+    /// Whether this step's `position_correction` applies.
+    pub(crate) corrected: bool,
+    /// Scratch: `v_next + position_correction / h`, the velocity q is integrated with.
+    step_velocity: DVector<f64>,
+    /// Scratch: a configuration (nq).
+    q_scratch: DVector<f64>,
 }
 
 /// Per body of a multibody, its spatial velocity in world axes about the world origin under
@@ -201,6 +212,10 @@ impl Multibody {
                 solved: vec![Motion::zero(); nb],
             },
             v_solved: DVector::zeros(nv),
+            position_correction: DVector::zeros(nv),
+            corrected: false,
+            step_velocity: DVector::zeros(nv),
+            q_scratch: DVector::zeros(model.nq()),
             model,
         }
     }
@@ -429,15 +444,55 @@ impl Multibody {
         }
     }
 
+    /// `q_next = q ⊕ (h · v_next + Δ)` on the manifold, free origins on straight lines
+    /// ([`Model::integrate_decoupled`]), with Δ this step's contact projection
+    /// (`position_correction`, when `corrected`; else Δ = 0): the correction is taken in the
+    /// same chart, at the step's start, as the step's own displacement and the constraint rows.
+    pub(crate) fn integrate_step(&mut self, h: f64) {
+        if self.corrected {
+            self.step_velocity.copy_from(&self.v_next);
+            self.step_velocity.axpy(1.0 / h, &self.position_correction, 1.0);
+            self.model.integrate_decoupled(&self.state.q, &self.step_velocity, h, &mut self.q_next);
+        } else {
+            self.model.integrate_decoupled(&self.state.q, &self.v_next, h, &mut self.q_next);
+        }
+    }
+
+    /// `q_next ← q_next ⊕ Δ` with Δ = `position_correction` taken in the tangent space at
+    /// `q_next` (the end contacts' rows are at `q_next`); a free joint's velocity, in its
+    /// body's axes, follows the turn `exp(Δω)` so that its world velocity stays as it was.
+    pub(crate) fn apply_end_correction(&mut self) {
+        std::mem::swap(&mut self.q_next, &mut self.q_scratch);
+        self.model.integrate_decoupled(&self.q_scratch, &self.position_correction, 1.0, &mut self.q_next);
+        for i in 1..self.model.nbodies() {
+            if matches!(self.model.joint(i), Joint::Free) {
+                let k = self.model.idx_v(i);
+                let v = Vec3::new(self.v_next[k], self.v_next[k + 1], self.v_next[k + 2]);
+                let c = &self.position_correction;
+                let turn = Vec3::new(c[k + 3], c[k + 4], c[k + 5]);
+                let turned = nalgebra::UnitQuaternion::from_scaled_axis(turn).inverse() * v;
+                for a in 0..3 {
+                    self.v_next[k + a] = turned[a];
+                }
+            }
+        }
+    }
+
     /// Free joints: `v_next`'s linear part, expressed in the axes of the start of the step, in
-    /// the axes after the step turned them by `exp(ω h)`: `v ← exp(ω h)ᵀ v`. The angular part is
-    /// invariant under its own rotation.
+    /// the axes after the step turned them by `exp(ω h)` (ω the rate q was integrated with,
+    /// the contact projection's turn included): `v ← exp(ω h)ᵀ v`, so that the origin's velocity
+    /// in world axes is the one the step solved for. The angular part is invariant under its
+    /// own rotation.
     pub(crate) fn transport_free_velocities(&mut self, h: f64) {
         for i in 1..self.model.nbodies() {
             if matches!(self.model.joint(i), Joint::Free) {
                 let k = self.model.idx_v(i);
                 let v = Vec3::new(self.v_next[k], self.v_next[k + 1], self.v_next[k + 2]);
-                let w = Vec3::new(self.v_next[k + 3], self.v_next[k + 4], self.v_next[k + 5]);
+                let mut w = Vec3::new(self.v_next[k + 3], self.v_next[k + 4], self.v_next[k + 5]);
+                if self.corrected {
+                    let c = &self.position_correction;
+                    w += Vec3::new(c[k + 3], c[k + 4], c[k + 5]) / h;
+                }
                 let turned = nalgebra::UnitQuaternion::from_scaled_axis(w * h).inverse() * v;
                 for a in 0..3 {
                     self.v_next[k + a] = turned[a];

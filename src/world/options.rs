@@ -152,6 +152,11 @@ pub struct WorldOptions {
     /// after a velocity-level step, or RATTLE's sweeps for a linkage whose only rows are its
     /// own closures; a mass-metric projection after a smooth step).
     pub loop_projection: super::LoopProjection,
+    /// The position correction of contacts after each velocity-level step
+    /// ([`super::ContactProjection`], on by default): each contact predicted deeper than the
+    /// slop at the end of the step is pushed out by a change of q alone (along M⁻¹Jₙᵀ, the
+    /// least change in the mass metric), reusing the step's normal rows; v is not changed.
+    pub contact_projection: super::ContactProjection,
     /// Integrator of the steps without contacts, limits, motors or joint friction (see
     /// [`super::smooth`]); the default, semi-implicit Euler, keeps the velocity-level step for
     /// every step.
@@ -199,6 +204,7 @@ impl Default for WorldOptions {
             diagnostics: false,
             time_phases: false,
             loop_projection: super::LoopProjection::default(),
+            contact_projection: super::ContactProjection::default(),
             integrator: IntegratorKind::SemiImplicitEuler,
             mass_matrix_reuse: Some(1e-8),
         }

@@ -211,7 +211,7 @@ impl ProjectionBuffers {
             }
             self.correction(nv);
             b.v_next += &self.delta;
-            b.model.integrate_decoupled(&b.state.q, &b.v_next, h, &mut b.q_next);
+            b.integrate_step(h);
         }
         Ok(())
     }

@@ -44,8 +44,10 @@ pub struct StepStats {
     /// translation error (m) or joint-limit overshoot (rad or m), whichever is larger.
     pub constraint_violation: Option<f64>,
     /// Nanoseconds per phase: kinematics, collision, free motion, rows + assembly, solve,
-    /// integration + sleeping; zeros unless [`super::WorldOptions::time_phases`] is on.
-    pub phase_ns: [u64; 6],
+    /// integration + sleeping, contact projection (both of its parts:
+    /// [`super::WorldOptions::contact_projection`]); zeros unless
+    /// [`super::WorldOptions::time_phases`] is on.
+    pub phase_ns: [u64; 7],
     /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step,
     /// `"rattle"` when every moving multibody was a linkage stepped by RATTLE (its only rows
     /// its own loop closures: see [`super::rattle`]), `"semi-implicit-euler+rattle"` when some
@@ -58,6 +60,8 @@ pub struct StepStats {
     /// What the sweeps could not do: a sweep asked of a body without a collider, a
     /// time-of-impact query that did not converge or is not supported for a pair.
     pub sweep_diagnostics: Vec<SweepDiagnostic>,
+    /// What the contacts' position correction did ([`super::WorldOptions::contact_projection`]).
+    pub projection: super::ProjectionStats,
 }
 
 /// The phases of a step timed by [`PhaseTimer`], in the order of [`StepStats::phase_ns`].
@@ -75,26 +79,30 @@ pub(crate) enum Phase {
     Solve = 4,
     /// Integration, sleeping and diagnostics.
     Integrate = 5,
+    /// The contact projection: predicted gaps and their correction, and the check at the end
+    /// of the step.
+    Projection = 6,
 }
 
 /// Wall-clock time per phase of a step, read only when [`super::WorldOptions::time_phases`] is
 /// on (reading the clock costs tens of nanoseconds).
 pub(crate) struct PhaseTimer {
     clock: Option<Instant>,
-    ns: [u64; 6],
+    ns: [u64; 7],
 }
 
 impl PhaseTimer {
     /// Starts the clock if `on`.
     pub(crate) fn start(on: bool) -> Self {
-        Self { clock: on.then(Instant::now), ns: [0; 6] }
+        Self { clock: on.then(Instant::now), ns: [0; 7] }
     }
 
-    /// Ends `phase` now: its time is the time since the last lap.
+    /// Ends a part of `phase` now: the time since the last lap is added to it (a phase may be
+    /// timed in several parts).
     pub(crate) fn lap(&mut self, phase: Phase) {
         if let Some(clock) = &mut self.clock {
             let now = Instant::now();
-            self.ns[phase as usize] = (now - *clock).as_nanos() as u64;
+            self.ns[phase as usize] += (now - *clock).as_nanos() as u64;
             *clock = now;
         }
     }
@@ -125,6 +133,7 @@ impl StepStats {
         integrator: &'static str,
         (sweeps, sweep_diagnostics): (SweepStats, &[SweepDiagnostic]),
         (islands, largest_island): (usize, usize),
+        projection: super::ProjectionStats,
     ) -> Self {
         let (islands, largest_island) = if report.is_some() { (islands, largest_island) } else { (0, 0) };
         let report = report.unwrap_or_else(|| ChainReport {
@@ -155,6 +164,7 @@ impl StepStats {
             integrator,
             sweeps,
             sweep_diagnostics: sweep_diagnostics.to_vec(),
+            projection,
         }
     }
 }

@@ -144,7 +144,7 @@ fn kept_contact_rows_are_the_rows_formed_anew() {
 fn a_step_times_its_phases_only_when_asked() {
     let mut w = resting_box();
     assert!(!w.options().time_phases);
-    assert_eq!(w.step().unwrap().phase_ns, [0; 6]);
+    assert_eq!(w.step().unwrap().phase_ns, [0; 7]);
     w.set_phase_timing(true);
     let phases = w.step().unwrap().phase_ns;
     assert!(phases.iter().sum::<u64>() > 0, "{phases:?}");

@@ -38,6 +38,10 @@ pub enum BenchCommand {
         /// Relative softness of the rows instead of the scene's (R_ii = s A_ii; 0: hard).
         #[arg(long)]
         softness: Option<f64>,
+        /// The contacts' position correction after each step on or off instead of the scene's
+        /// (on by default).
+        #[arg(long, value_name = "on|off")]
+        contact_projection: Option<crate::Switch>,
         /// Steps timed (at least 1; one episode from the initial state, after `--settle`).
         #[arg(long, default_value_t = 2500, value_parser = at_least_one)]
         steps: usize,
@@ -66,13 +70,25 @@ pub fn run(command: BenchCommand) -> Result<(), String> {
         BenchCommand::Dynamics { model, floating, json, rounds } => {
             bench_dynamics(&model, floating, json, rounds)
         }
-        BenchCommand::World { scene, solver, softness, steps, settle, sleep, controls, rounds, json } => {
+        BenchCommand::World {
+            scene,
+            solver,
+            softness,
+            contact_projection,
+            steps,
+            settle,
+            sleep,
+            controls,
+            rounds,
+            json,
+        } => {
+            let contact_projection = contact_projection.map(crate::Switch::on);
             bench_world(
                 &scene,
                 solver.as_deref(),
                 steps,
                 settle,
-                BenchOptions { sleep, controls, softness },
+                BenchOptions { sleep, controls, softness, contact_projection },
                 rounds,
                 json,
             )
@@ -199,11 +215,13 @@ fn is_mjcf(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml"))
 }
 
-/// Switches of `bench world`: sleeping kept on, vehicle commands applied, the rows' softness.
+/// Switches of `bench world`: sleeping kept on, vehicle commands applied, the rows' softness,
+/// the contact projection on or off.
 struct BenchOptions {
     sleep: bool,
     controls: bool,
     softness: Option<f64>,
+    contact_projection: Option<bool>,
 }
 
 fn bench_world(
@@ -211,7 +229,7 @@ fn bench_world(
     solver: Option<&str>,
     steps: usize,
     settle: usize,
-    BenchOptions { sleep, controls, softness }: BenchOptions,
+    BenchOptions { sleep, controls, softness, contact_projection }: BenchOptions,
     rounds: usize,
     as_json: bool,
 ) -> Result<(), String> {
@@ -234,6 +252,10 @@ fn bench_world(
             }
             world.set_softness(s);
         }
+        if let Some(enabled) = contact_projection {
+            let projection = world.options().contact_projection;
+            world.set_contact_projection(gelenk::world::ContactProjection { enabled, ..projection });
+        }
         if !sleep {
             world.set_sleep(gelenk::world::SleepOptions { enabled: false, ..world.options().sleep });
         }
@@ -255,7 +277,7 @@ fn bench_world(
         let mut target = load()?;
         target.world().set_phase_timing(true);
         let mut times = Vec::with_capacity(steps);
-        let mut phase = [0u64; 6];
+        let mut phase = [0u64; 7];
         (rows, fallbacks, iterations) = (0, 0, 0);
         solver_usage.clear();
         quality = RunQuality::default();
@@ -287,9 +309,10 @@ fn bench_world(
         x.sort_by(f64::total_cmp);
         x[x.len() / 2]
     };
-    let phase: Vec<f64> = (0..6).map(|k| median(phases.iter().map(|p| p[k]).collect())).collect();
+    let phase: Vec<f64> = (0..7).map(|k| median(phases.iter().map(|p| p[k]).collect())).collect();
     let (median_us, mean_us) = (median(medians), median(means));
-    const PHASES: [&str; 6] = ["kinematics", "collision", "free_motion", "assembly", "solve", "integrate"];
+    const PHASES: [&str; 7] =
+        ["kinematics", "collision", "free_motion", "assembly", "solve", "integrate", "projection"];
     if as_json {
         let phase_json: serde_json::Map<String, serde_json::Value> =
             PHASES.iter().zip(&phase).map(|(n, us)| (n.to_string(), json!(us))).collect();

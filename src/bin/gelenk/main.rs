@@ -69,6 +69,22 @@ enum Command {
     },
 }
 
+/// An option that is on or off (`--contact-projection on|off`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
+}
+
+impl Switch {
+    /// Whether it is on.
+    fn on(self) -> bool {
+        self == Switch::On
+    }
+}
+
 fn main() -> ExitCode {
     // Rust ignores SIGPIPE, so `gelenk simulate … | head` would make println! panic once the
     // reader closes the pipe; the default action ends the program quietly, as Unix tools do.

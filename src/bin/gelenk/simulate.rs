@@ -26,6 +26,10 @@ pub struct SimulateArgs {
     /// trajectory is the same on any count).
     #[arg(long)]
     threads: Option<usize>,
+    /// The contacts' position correction after each step on or off instead of the scene's
+    /// (`[world] contact_projection`; on by default).
+    #[arg(long, value_name = "on|off")]
+    contact_projection: Option<crate::Switch>,
     /// Write the recorded states to FILE.csv or FILE.json.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -75,6 +79,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         record_frames: glb.is_some(),
         softness: args.softness,
         threads: args.threads,
+        contact_projection: args.contact_projection.map(crate::Switch::on),
     };
     let summary = scene::run(&mut loaded, &options, crate::progress::run_bar()).map_err(|e| e.to_string())?;
     for warning in &loaded.warnings {

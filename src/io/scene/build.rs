@@ -96,6 +96,7 @@ pub(super) fn build(
     options.collision.collide_joined_bodies =
         w.collide_joined_bodies.unwrap_or(options.collision.collide_joined_bodies);
     options.continuous_collision = w.continuous_collision.unwrap_or(options.continuous_collision);
+    options.contact_projection.enabled = w.contact_projection.unwrap_or(options.contact_projection.enabled);
     options.collision.reuse = w.contact_reuse.map_or(options.collision.reuse, |r| r.0);
     options.mass_matrix_reuse = w.mass_matrix_reuse.map_or(options.mass_matrix_reuse, |r| r.0);
     options.sleep.enabled = w.sleep.unwrap_or(options.sleep.enabled);

@@ -88,6 +88,7 @@
 //! | | `speculative_within`, `speculative_factor` | contacts still apart get rows if their gap is at most `speculative_within` m or at most `speculative_factor` times the distance their points close in one step (`inf`: every contact within the margin) ([`crate::constraints::Speculation`]; 0.002, 2) |
 //! | | `collide_joined_bodies` | also test bodies joined by a joint (false) |
 //! | | `continuous_collision` | sweep colliders that move further than the margin in one step, so that fast bodies cannot pass through others ([`WorldOptions::continuous_collision`](crate::world::WorldOptions::continuous_collision); true) |
+//! | | `contact_projection` | after each step, push contacts deeper than 0.5 mm out by a change of the configuration alone, not of the velocity ([`WorldOptions::contact_projection`](crate::world::WorldOptions::contact_projection); true) |
 //! | | `mass_matrix_reuse` | reuse a multibody's factored mass matrix while no joint coordinate has moved further than this since it was factored, and the constraint problem's W built on it while the rows stay the same: `true`, `false` or a tolerance in rad or m ([`WorldOptions::mass_matrix_reuse`](crate::world::WorldOptions::mass_matrix_reuse); true: 1e-8) |
 //! | | `contact_reuse` | keep a pair's contact points while it moves less than this, refreshing only their distances: `true`, `false` or `{ translation = m, rotation = rad }` ([`crate::collision::ManifoldReuse`]; true: 1e-8 m, 1e-7 rad) |
 //! | | `sleep` | let resting bodies sleep (true) |

@@ -90,6 +90,7 @@ pub(super) struct WorldSection {
     pub(super) speculative_factor: Option<PositiveOrInfinite>,
     pub(super) collide_joined_bodies: Option<bool>,
     pub(super) continuous_collision: Option<bool>,
+    pub(super) contact_projection: Option<bool>,
     pub(super) contact_reuse: Option<ReuseSetting>,
     pub(super) mass_matrix_reuse: Option<MassReuseSetting>,
     pub(super) sleep: Option<bool>,

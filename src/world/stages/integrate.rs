@@ -78,7 +78,8 @@ pub(crate) fn run(
         b.v_next.copy_from(&v.rows(b.col, nv));
         // Straight-line origins (R³ × SO(3)), not the SE(3) screw: see
         // `Joint::integrate_decoupled` (a rolling ball would otherwise sink into its plane).
-        b.model.integrate_decoupled(&b.state.q, &b.v_next, h, &mut b.q_next);
+        // With this step's contact projection, if any (`Multibody::integrate_step`).
+        b.integrate_step(h);
         if let Some(buffers) = loops.projections[i].as_mut() {
             if !b.kinematic && b.factored {
                 let only_own_loops = sources.only_own_loops(i, b, &loops.closures);

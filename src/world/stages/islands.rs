@@ -93,6 +93,11 @@ impl IslandSolves {
         Ok(())
     }
 
+    /// The islands of the last solve's problem.
+    pub(crate) fn partition(&self) -> &IslandPartition {
+        &self.partition
+    }
+
     /// Threads the islands are solved on.
     pub(crate) fn threads(&self) -> usize {
         self.threads

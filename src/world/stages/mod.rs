@@ -12,7 +12,9 @@
 //!    the impulses.
 //! 7. [`speculation`]: rows for the contacts and limit stops the solved velocity closes, and
 //!    the problem solved again.
-//! 8. [`integrate`]: q on the manifold, loop closures projected, the new state committed.
+//! 8. [`integrate`]: q on the manifold, loop closures projected, the new state committed; the
+//!    contacts' position correction (`super::contact_projection`) is added to the step's
+//!    displacement before, and checked at the new configuration after.
 //!
 //! Sleeping ([`super::sleep`]) and the statistics ([`super::stats`]) close the step.
 
