@@ -24,7 +24,7 @@ struct Pinned {
 /// its circle at 4 s.
 const PINNED: [Pinned; 3] = [
     Pinned { scene: "ragdoll_fall.toml", steps: 750, hash: 0x051a_ae62_984b_74e3 },
-    Pinned { scene: "box_stack10.toml", steps: 500, hash: 0x17f5_2df5_aff8_476d },
+    Pinned { scene: "box_stack10.toml", steps: 500, hash: 0x9c10_0ef2_4fb8_34c3 },
     Pinned { scene: "buggy_drive.toml", steps: 2250, hash: 0x3ff1_b861_419d_9c23 },
 ];
 

@@ -5,7 +5,8 @@
 //! `src/world/stages/`: check state finite → kinematics → collision → free motion → constraint
 //! rows and their problem → solve and velocity update (warm-started, `warm_start.rs`) → rows for
 //! the speculative contacts and limit stops that the solved velocity closes, and solve again →
-//! the contacts' position correction from their predicted gaps ([`ContactProjection`],
+//! a lone free body's origin along the step's mean velocity where no contact normal constrains
+//! it (`stages/midpoint.rs`) → the contacts' position correction from their predicted gaps ([`ContactProjection`],
 //! `contact_projection.rs`) → integrate q on the manifold (free origins on straight lines, see
 //! [`crate::model::Joint::integrate_decoupled`]), the correction included, and close the loop
 //! closures at the new configuration (SHAKE, [`LoopProjection`]; a linkage whose only rows are
@@ -573,6 +574,7 @@ impl World {
         let report = if solve { Some(self.solve_problem()?) } else { None };
         let report = self.speculation_passes(h, report)?;
         timer.lap(Phase::Solve);
+        self.midpoint_shifts(h, smooth);
         self.project_contacts(h, report.is_some());
         timer.lap(Phase::Projection);
         self.integrate(h, smooth)?;
@@ -629,7 +631,24 @@ impl World {
         solve
     }
 
-    /// Stage 8, first: the contacts' position correction of the step from their predicted gaps
+    /// Stage 8, first: lone free bodies' origins along the step's mean velocity where no contact
+    /// normal constrains them (see [`stages::midpoint`]); none in a smooth step.
+    fn midpoint_shifts(&mut self, h: f64, smooth: bool) {
+        let inputs = stages::midpoint::MidpointInputs {
+            contacts: &self.contacts,
+            closures: &self.loops.closures,
+            v_start: &self.dofs.v_start,
+            v_end: &self.dofs.v_free,
+            limit_margin: self.options.limits.margin,
+        };
+        if smooth {
+            self.bodies.iter_mut().for_each(|b| b.midpoint_shift = Vec3::zeros());
+        } else {
+            stages::midpoint::run(&mut self.bodies, &inputs, h);
+        }
+    }
+
+    /// Stage 8, second: the contacts' position correction of the step from their predicted gaps
     /// (see [`contact_projection`]), into the multibodies' `position_correction`; `solved`: the
     /// step's problem was solved and its impulses applied.
     fn project_contacts(&mut self, h: f64, solved: bool) {

@@ -139,7 +139,13 @@ pub struct Multibody {
     pub(crate) position_correction: DVector<f64>,
     /// Whether this step's `position_correction` applies.
     pub(crate) corrected: bool,
-    /// Scratch: `v_next + position_correction / h`, the velocity q is integrated with.
+    /// A lone free body's shift of its origin over the step (m, in its body axes at the step's
+    /// start, as the free joint's linear velocity is): the step's mean velocity replaces its
+    /// end velocity along the directions no contact normal constrains
+    /// ([`super::stages::midpoint`]); zero for any other multibody.
+    pub(crate) midpoint_shift: Vec3,
+    /// Scratch: `v_next + (position_correction + midpoint_shift) / h`, the velocity q is
+    /// integrated with.
     step_velocity: DVector<f64>,
     /// Scratch: a configuration (nq).
     q_scratch: DVector<f64>,
@@ -214,6 +220,7 @@ impl Multibody {
             v_solved: DVector::zeros(nv),
             position_correction: DVector::zeros(nv),
             corrected: false,
+            midpoint_shift: Vec3::zeros(),
             step_velocity: DVector::zeros(nv),
             q_scratch: DVector::zeros(model.nq()),
             model,
@@ -444,14 +451,24 @@ impl Multibody {
         }
     }
 
-    /// `q_next = q ⊕ (h · v_next + Δ)` on the manifold, free origins on straight lines
+    /// `q_next = q ⊕ (h · v_next + Δ + s)` on the manifold, free origins on straight lines
     /// ([`Model::integrate_decoupled`]), with Δ this step's contact projection
-    /// (`position_correction`, when `corrected`; else Δ = 0): the correction is taken in the
-    /// same chart, at the step's start, as the step's own displacement and the constraint rows.
+    /// (`position_correction`, when `corrected`; else Δ = 0) and s a lone free body's
+    /// `midpoint_shift`: both are taken in the same chart, at the step's start, as the step's
+    /// own displacement and the constraint rows.
     pub(crate) fn integrate_step(&mut self, h: f64) {
-        if self.corrected {
+        let shifted = self.midpoint_shift != Vec3::zeros();
+        if self.corrected || shifted {
             self.step_velocity.copy_from(&self.v_next);
-            self.step_velocity.axpy(1.0 / h, &self.position_correction, 1.0);
+            if self.corrected {
+                self.step_velocity.axpy(1.0 / h, &self.position_correction, 1.0);
+            }
+            if shifted {
+                // Only a lone free body is shifted: its linear dofs are its first three.
+                for a in 0..3 {
+                    self.step_velocity[a] += self.midpoint_shift[a] / h;
+                }
+            }
             self.model.integrate_decoupled(&self.state.q, &self.step_velocity, h, &mut self.q_next);
         } else {
             self.model.integrate_decoupled(&self.state.q, &self.v_next, h, &mut self.q_next);

@@ -12,9 +12,11 @@
 //!    the impulses.
 //! 7. [`speculation`]: rows for the contacts and limit stops the solved velocity closes, and
 //!    the problem solved again.
-//! 8. [`integrate`]: q on the manifold, loop closures projected, the new state committed; the
-//!    contacts' position correction (`super::contact_projection`) is added to the step's
-//!    displacement before, and checked at the new configuration after.
+//! 8. [`integrate`]: q on the manifold, loop closures projected, the new state committed; a
+//!    lone free body's origin moves with the step's mean velocity where no contact normal
+//!    constrains it ([`midpoint`]), and the contacts' position correction
+//!    (`super::contact_projection`) is added to the step's displacement before, and checked at
+//!    the new configuration after.
 //!
 //! Sleeping ([`super::sleep`]) and the statistics ([`super::stats`]) close the step.
 
@@ -24,6 +26,7 @@ pub(super) mod free_motion;
 pub(super) mod integrate;
 pub(super) mod islands;
 pub(super) mod kinematics;
+pub(super) mod midpoint;
 pub(super) mod rows;
 pub(super) mod solve;
 pub(super) mod speculation;
