@@ -12,12 +12,10 @@
 //!
 //! Per run: the deepest penetration of any step's contacts, the steps whose accepted answer is
 //! above the chain's tolerance, the fallbacks, the largest total energy after a step minus the
-//! energy at the start, the lowest point of any body's collider (its box; the ground is z = 0),
-//! when every multibody is first asleep, the CPU time per step (the stepping thread's clock
-//! around `World::step` alone; energy and boxes are read outside it) and the contact
-//! projection's share of the step's time (its phase in `StepStats::phase_ns`).
+//! energy at the start, when every multibody is first asleep, the CPU time per step (the
+//! stepping thread's clock around `World::step` alone; the energy is read outside it) and the
+//! contact projection's share of the step's time (its phase in `StepStats::phase_ns`).
 
-use gelenk::collision::Attachment;
 use gelenk::io::scene::{self, RunOptions};
 use gelenk::world::ContactProjection;
 use std::error::Error;
@@ -47,7 +45,6 @@ struct Measured {
     above_tolerance: usize,
     fallbacks: usize,
     energy_rise: f64,
-    lowest: f64,
     asleep_at: Option<f64>,
     cpu: f64,
     projection_share: f64,
@@ -74,7 +71,6 @@ fn measure(name: &str, dt: f64, projection: bool) -> Result<Measured, Box<dyn Er
         above_tolerance: 0,
         fallbacks: 0,
         energy_rise: f64::NEG_INFINITY,
-        lowest: f64::INFINITY,
         asleep_at: None,
         cpu: 0.0,
         projection_share: 0.0,
@@ -93,11 +89,6 @@ fn measure(name: &str, dt: f64, projection: bool) -> Result<Measured, Box<dyn Er
             m.asleep_at = Some(step as f64 * dt);
         }
         m.energy_rise = m.energy_rise.max(world.total_energy() - start_energy);
-        for c in world.collision().colliders() {
-            if let Attachment::Body { .. } = c.attachment() {
-                m.lowest = m.lowest.min(c.aabb().0[2]);
-            }
-        }
     }
     m.projection_share = projection_ns as f64 / phases.max(1) as f64;
     Ok(m)
@@ -116,8 +107,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     )?;
     table.push_str(
         "| scene | dt | projection | deepest penetration (mm) | steps above tolerance | fallbacks \
-         | largest energy over the start (J) | lowest body point (mm) | all asleep at (s) | CPU ms per step \
-         | CPU on / off | projection's share of the step |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+         | largest energy over the start (J) | all asleep at (s) | CPU ms per step \
+         | CPU on / off | projection's share of the step |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for name in SCENES {
         for &(label, dt) in steps {
@@ -131,13 +122,12 @@ fn main() -> Result<(), Box<dyn Error>> {
                     String::new()
                 };
                 let line = format!(
-                    "| {name} | {label} | {which} | {:.2} | {} of {} | {} | {:.3} | {:.2} | {} | {:.2} | {ratio} | {share} |",
+                    "| {name} | {label} | {which} | {:.2} | {} of {} | {} | {:.3} | {} | {:.2} | {ratio} | {share} |",
                     1e3 * m.penetration,
                     m.above_tolerance,
                     m.steps,
                     m.fallbacks,
                     m.energy_rise,
-                    1e3 * m.lowest,
                     m.asleep_at.map_or("not in 10 s".to_string(), |t| format!("{t:.2}")),
                     1e3 * m.cpu / m.steps as f64,
                 );

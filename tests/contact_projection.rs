@@ -80,13 +80,15 @@ fn a_resting_box_is_left_alone() {
 /// on softened rows), through the impacts of the first 2.5 s: every step's contacts within 5 mm
 /// of penetration (without the projection the deepest is about 2.4 cm), the steps certified.
 #[test]
-fn the_ragdoll_pile_at_60_hz_penetrates_less_than_5_mm() {
+fn the_ragdoll_pile_at_60_hz_penetrates_less_than_2_mm() {
+    // 24 mm without the projection; a hand turning fast enough that one correction at the end
+    // poses (linear in its turn) leaves it 3 mm deep is detected and corrected again.
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/models/ragdoll_pile.toml");
     let mut loaded = scene::load_file(path).unwrap();
     let options =
         RunOptions { dt: Some(1.0 / 60.0), duration: Some(2.5), record_every: Some(0), ..Default::default() };
     let summary = scene::run(&mut loaded, &options, |_| {}).unwrap();
-    assert!(summary.max_penetration < 5e-3, "deepest penetration {} m", summary.max_penetration);
+    assert!(summary.max_penetration < 2e-3, "deepest penetration {} m", summary.max_penetration);
     assert_eq!(summary.steps_above_tolerance, 0);
     assert_eq!(summary.fallbacks, 0);
 }

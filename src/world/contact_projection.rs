@@ -51,7 +51,9 @@
 //! (the step's mass-matrix factors as the metric) and one more projection, solved by the same
 //! sweeps and, when they do not converge (a heap, whose corrections travel through tens of
 //! bodies), by Newton's method ([`NewtonSolver`]) from their answer; it is applied at `q⁺` in
-//! its own chart ([`Multibody::apply_end_correction`]). A heap at rest moves less than the
+//! its own chart ([`Multibody::apply_end_correction`]); while a correction leaves a contact
+//! deeper than the trigger, the contacts are detected and corrected again (`rounds` at most).
+//! A heap at rest moves less than the
 //! slop per step: the check costs it nothing.
 //!
 //! Loop closures within a multibody are closed after part 1 at the corrected configuration
@@ -93,7 +95,8 @@ pub struct ContactProjection {
     /// let a contact creep by micrometres as loads shift, from being corrected step after step
     /// (each correction shifts its loads again, and the heap does not come to rest).
     pub trigger: f64,
-    /// Most times the gaps are predicted and the correction solved in a step (≥ 1).
+    /// Most times the gaps are predicted and the correction solved in a step (≥ 1), and most
+    /// detections and corrections at the end of the step.
     pub rounds: usize,
     /// Most Gauss–Seidel sweeps per island and round.
     pub sweeps: usize,
@@ -136,6 +139,12 @@ pub struct ProjectionStats {
     /// The deepest penetration among the contacts found at the end of the step, before their
     /// correction (m, ≥ 0; 0 without that check).
     pub end_depth: f64,
+    /// Detections at the end of the step (0 without the check; another follows each correction
+    /// that left a contact deeper than the trigger, `rounds` at most).
+    pub end_rounds: usize,
+    /// The deepest penetration found by the last of them (m, ≥ 0): what its correction, if it
+    /// made one, started from.
+    pub end_residual: f64,
 }
 
 /// No multibody: the side of a contact on static geometry.
@@ -748,11 +757,26 @@ impl World {
     /// reached (kinematics and detection at every awake multibody's `q_next`) and, if one is
     /// deeper than the slop, their correction (rows at the end poses, the step's factors as the
     /// metric), applied to `q_next` in its own chart.
+    /// A correction that leaves a contact deeper than the trigger (a thin limb turning, whose
+    /// rows at the end poses are linear in its turn) is followed by another detection and
+    /// correction, `rounds` of them at most.
     pub(super) fn check_end_contacts(&mut self, h: f64) -> Result<(), StepError> {
         let settings = self.options.contact_projection;
         if !settings.enabled || self.projector.stats.motion <= settings.slop {
             return Ok(());
         }
+        for _ in 0..settings.rounds.max(1) {
+            if !self.end_round(h)? {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// One detection at every awake multibody's `q_next` and, if a contact is deeper than the
+    /// trigger, one correction applied to `q_next`; returns whether it corrected.
+    fn end_round(&mut self, h: f64) -> Result<bool, StepError> {
+        let settings = self.options.contact_projection;
         for (i, b) in self.bodies.iter_mut().enumerate() {
             if b.asleep {
                 continue;
@@ -766,6 +790,7 @@ impl World {
         end.contacts.clear();
         end.contacts.extend_from_slice(self.collision.detect());
         self.projector.stats.end_check = true;
+        self.projector.stats.end_rounds += 1;
         // Only a contact that the correction can move counts (one side awake and factored).
         let bodies = &self.bodies;
         let movable = |side: Attachment| matches!(side, Attachment::Body { multibody, .. } if bodies[multibody].factor_identity().is_some());
@@ -775,9 +800,12 @@ impl World {
             .filter(|c| movable(c.body_a) || movable(c.body_b))
             .map(|c| -c.distance)
             .fold(0.0, f64::max);
-        self.projector.stats.end_depth = deepest;
+        if self.projector.stats.end_rounds == 1 {
+            self.projector.stats.end_depth = deepest;
+        }
+        self.projector.stats.end_residual = deepest;
         if deepest <= settings.trigger {
-            return Ok(());
+            return Ok(false);
         }
         if end.sized_for != (self.dofs.nv, self.dofs.blocks.len()) {
             end.builder = ProblemBuilder::with_blocks(self.dofs.nv, &self.dofs.blocks, self.options.friction)
@@ -801,13 +829,13 @@ impl World {
         end.builder.build_into_blocks(&self.dofs.v_free, factor_of, false, &mut end.problem);
         end.partition.split(&end.problem);
         if !self.projector.correct_end_contacts(end, &self.dofs.block_owner, &mut self.bodies, &settings) {
-            return Ok(());
+            return Ok(false);
         }
         for (i, b) in self.bodies.iter_mut().enumerate().filter(|(_, b)| b.corrected) {
             b.apply_end_correction();
             finite(&self.names[i], &b.model, &b.q_next, &b.v_next, true)?;
         }
-        Ok(())
+        Ok(true)
     }
 }
 
