@@ -114,7 +114,9 @@ pub struct WorldOptions {
     /// Friction cone or pyramid.
     pub friction: FrictionModel,
     /// Solver chain, first choice first, run on each island of the step's problem
-    /// ([`super::World::set_threads`]). The default, PGS (100 sweeps) → clarabel; piles of
+    /// ([`super::World::set_threads`]). The default, PGS (100 sweeps) → Newton → clarabel: PGS
+    /// solves the exact Coulomb problem (a box slides on its plane), Newton's method and
+    /// clarabel its convex relaxation (a sliding contact separates at μ‖v_t‖). Piles of
     /// articulated bodies are answered by Newton's method on softened rows (`newton`,
     /// `clarabel` with [`Self::softness`] 0.1: models/ragdoll_crowd.toml).
     pub solvers: Vec<SolverKind>,
