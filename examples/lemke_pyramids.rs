@@ -9,7 +9,8 @@
 //! Per variant it prints the steps taken, the first step whose solve failed (and the error),
 //! the steps whose certified residual is above the world's 1e-8 m/s, the largest residual, the
 //! pivots and wall time per step and the top box's drift. With `--export DIR` the problem of
-//! each variant's first failed step is written to `DIR/<variant>/problem.json` (`gelenk
+//! each variant's first failed step is written to `DIR/<variant>/problem.json`, and that of its
+//! first step above 1e-8 m/s to `DIR/<variant>/above/problem.json` (`gelenk
 //! solve-problem` reads it; its A is formed densely, so a solve of the file rounds differently
 //! from the world's). `--only` runs the variants whose name (`base10-gap1.5mm-dt60`) contains
 //! NAME. The exit status is 1 when any variant has a failed step.
@@ -93,11 +94,19 @@ fn run(variant: Variant, seconds: f64, export: Option<&PathBuf>) -> Result<Run, 
     for step in 0..steps {
         match w.step() {
             Ok(stats) => {
+                let (iterations, contacts, residual) = (stats.iterations, stats.contacts, stats.residual);
                 out.steps += 1;
-                out.pivots += stats.iterations;
-                out.contacts = out.contacts.max(stats.contacts);
-                out.above += usize::from(stats.residual > tolerance);
-                out.worst = out.worst.max(stats.residual);
+                out.pivots += iterations;
+                out.contacts = out.contacts.max(contacts);
+                if residual > tolerance && out.above == 0 {
+                    if let Some(dir) = export {
+                        let dir = dir.join(variant.name()).join("above");
+                        std::fs::create_dir_all(&dir)?;
+                        std::fs::write(dir.join(PROBLEM_FILE), problem_to_json(w.problem())?)?;
+                    }
+                }
+                out.above += usize::from(residual > tolerance);
+                out.worst = out.worst.max(residual);
             }
             Err(e) => {
                 if let Some(dir) = export {

@@ -326,6 +326,19 @@ pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> Spars
 }
 
 impl SparseLcp {
+    /// The blocks of variables polishing solves together ([`super::polish`]): the variables
+    /// coupled by E (a contact's friction slack with its normal impulse and facets, a bound
+    /// multiplier with its variable), which are the ones a zero diagonal of M couples; every
+    /// other variable alone.
+    pub fn blocks(&self) -> Vec<Vec<usize>> {
+        let pairs = self
+            .extra_of_column
+            .iter()
+            .enumerate()
+            .flat_map(|(j, col)| col.iter().map(move |&(i, _)| (i, j)));
+        super::polish::blocks_of_pairs(self.q.len(), pairs)
+    }
+
     /// M in full, formed on the first call.
     pub fn form_m(&mut self) -> &Csc {
         if self.m.is_none() {

@@ -22,6 +22,11 @@
 //!   (a basis of a highly degenerate vertex, values some 1e-9 below zero) is accepted when the
 //!   problem's own residual, the one the chain certifies, is within the chain's tolerance;
 //!   only otherwise are the other covering vectors tried, each a path from the identity again.
+//! - An answer that neither check accepts (at the most degenerate vertices of a pyramid of
+//!   touching boxes, thousands of w a few 1e-9 below zero that no pivot from the final basis
+//!   resolves) is polished by block Gauss–Seidel sweeps, each contact's small LCP solved
+//!   exactly with the rest of z fixed ([`polish`]), and judged by the same two checks before
+//!   the next path is tried.
 //! - A path that leaves along a secondary ray returns the ray with its check ([`RayCertificate`]):
 //!   the ray's conditions recomputed from M and q, and whether its direction is a Farkas proof
 //!   that the LCP has no feasible point (then no other covering vector is tried).
@@ -34,6 +39,7 @@ mod delassus;
 mod lazy;
 mod lcp;
 mod path;
+mod polish;
 mod ray;
 mod scaling;
 mod solver;
@@ -116,6 +122,9 @@ pub struct LemkeReport {
     pub restarts: usize,
     /// Principal pivots that repaired final bases with slightly negative values.
     pub swaps: usize,
+    /// Whether the answer was polished by block Gauss–Seidel sweeps from a path's answer
+    /// above the tolerance.
+    pub polished_blocks: bool,
     /// Whether the solve started from a given complementary basis (the last solve's).
     pub warm_started: bool,
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
@@ -140,6 +149,9 @@ impl LemkeReport {
 
 /// Paths restarted from the final basis of a path whose answer misses the tolerance.
 const RESTARTS: usize = 2;
+
+/// Sweeps of block Gauss–Seidel at most on an answer above the tolerance ([`polish`]).
+const POLISH_SWEEPS: usize = 30;
 
 /// Principal pivots tried on a final basis with slightly negative values ([`Path::clean`]).
 const SWAPS: usize = 16;
@@ -404,10 +416,26 @@ fn solve_from_basis(
             &z_of,
             &residual_of,
         );
-        let within_tolerance = repaired.residual <= tolerance;
-        let z = DVector::from_vec(repaired.z);
-        if within_tolerance || certify(&z) {
-            report.residual = repaired.residual;
+        let (mut z, mut residual) = (DVector::from_vec(repaired.z), repaired.residual);
+        let mut within_tolerance = residual <= tolerance;
+        let mut accepted = within_tolerance || certify(&z);
+        if !accepted {
+            // Neither within the tolerance nor certified: polished from this answer.
+            let blocks = match cols.m {
+                Matrix::Lazy(lcp) => lcp.blocks(),
+                Matrix::Formed(_) => polish::blocks_of(cols),
+            };
+            if let Some((polished, polished_residual)) =
+                polish::polish(cols, q.as_slice(), &blocks, z.as_slice(), tolerance, POLISH_SWEEPS)
+            {
+                report.polished_blocks = true;
+                (z, residual) = (DVector::from_vec(polished), polished_residual);
+                within_tolerance = residual <= tolerance;
+                accepted = within_tolerance || certify(&z);
+            }
+        }
+        if accepted {
+            report.residual = residual;
             return Ok(Solution {
                 z,
                 report,
@@ -443,6 +471,7 @@ fn solve_sparse(
     let identity = Scaling::identity(n);
     let mut best: Option<(DVector<f64>, f64, Option<Vec<usize>>)> = None;
     let mut failure: Option<SolverError> = None;
+    let mut blocks = None;
     for (scaled, covering) in ATTEMPTS {
         if !scaled && equilibrated.scaling.is_identity() {
             continue; // the same path as the equilibrated one
@@ -460,10 +489,30 @@ fn solve_sparse(
             attempt(m, q, &cols, &q_scaled, scaling, covering, scaled, path_options, tolerance, &mut report);
         match outcome {
             Attempt::Solved(solution) => return Ok(solution),
-            Attempt::Inaccurate(z, residual, basis) => {
+            Attempt::Inaccurate(mut z, mut residual, basis) => {
                 if certify(&z) {
                     report.residual = residual;
                     return Ok(Solution { z, report, within_tolerance: false, basis, certified: true });
+                }
+                // Neither within the tolerance nor certified: polished from this answer.
+                let original = Columns { m: Matrix::Formed(m), d: Vec::new() };
+                let blocks = blocks.get_or_insert_with(|| polish::blocks_of(&original));
+                if let Some((polished, polished_residual)) =
+                    polish::polish(&original, q.as_slice(), blocks, z.as_slice(), tolerance, POLISH_SWEEPS)
+                {
+                    report.polished_blocks = true;
+                    (z, residual) = (DVector::from_vec(polished), polished_residual);
+                    let within_tolerance = residual <= tolerance;
+                    if within_tolerance || certify(&z) {
+                        report.residual = residual;
+                        return Ok(Solution {
+                            z,
+                            report,
+                            within_tolerance,
+                            basis,
+                            certified: !within_tolerance,
+                        });
+                    }
                 }
                 if best.as_ref().is_none_or(|(_, r, _)| residual < *r) {
                     best = Some((z, residual, basis));
