@@ -207,7 +207,8 @@ fn a_limit_left_out_by_the_speculation_gets_its_row_when_the_solve_closes_it() {
 }
 
 /// A 0.2 m, 1 kg box resting on the ground with μ = 0.5 at dt = 1 ms, pushed at 2 m/s along
-/// `direction` (unit, horizontal): its displacement (x, y) after 3 s and the fallbacks on the way.
+/// `direction` (unit, horizontal): its displacement (x, y) after 3 s and the fallbacks on the way
+/// (but `newton-exact`'s).
 fn slide_box(mut options: WorldOptions, direction: [f64; 2]) -> ((f64, f64), usize) {
     options.dt = 1e-3;
     options.contact = ContactParameters { mu: 0.5, ..Default::default() };
@@ -233,9 +234,11 @@ fn slide_box(mut options: WorldOptions, direction: [f64; 2]) -> ((f64, f64), usi
     let v0 = 2.0;
     w.multibody_mut(b).state.v[0] = v0 * direction[0];
     w.multibody_mut(b).state.v[1] = v0 * direction[1];
+    // The default chain starts with `newton-exact`, whose relaxed answer for a sliding contact
+    // fails the exact certificate by design and is passed on: those are not counted.
     let mut fallbacks = 0;
     for _ in 0..3000 {
-        fallbacks += w.step().unwrap().fallbacks.len();
+        fallbacks += w.step().unwrap().fallbacks.iter().filter(|f| f.solver != "newton-exact").count();
     }
     let q = &w.multibody(b).state.q;
     ((q[0] - x0, q[1] - y0), fallbacks)
@@ -249,7 +252,8 @@ fn sliding_box_stops_after_v0_squared_over_two_mu_g() {
 }
 
 /// MuJoCo's pyramidal friction (`FrictionModel::Pyramid { facets: 4 }`: `|λ₁| + |λ₂| ≤ μ λ_n`)
-/// with the default chain (PGS with its linear subspace steps, certified at 1e-6 m/s): a box
+/// with the default chain (PGS with its linear subspace steps answering each sliding step,
+/// certified at 1e-6 m/s): a box
 /// sliding along a tangent axis (a vertex of the pyramid) stops after v₀²/(2μg) like with the
 /// cone; sliding along the diagonal (a facet: the friction along the motion is μ/√2 per unit
 /// normal force) it goes √2 times as far and stays on the diagonal.
@@ -259,7 +263,7 @@ fn pyramid_friction_stops_a_box_after_the_distance_its_facets_give() {
     let slide = |direction: [f64; 2]| {
         let options = WorldOptions { friction: FrictionModel::Pyramid { facets: 4 }, ..Default::default() };
         let (displacement, fallbacks) = slide_box(options, direction);
-        assert_eq!(fallbacks, 0, "every step certified by PGS");
+        assert_eq!(fallbacks, 0, "every sliding step certified by PGS");
         displacement
     };
     let axis = 4.0 / (2.0 * 0.5 * 9.81);

@@ -19,6 +19,9 @@ pub enum SolverKind {
     Clarabel,
     /// Newton's method on the primal problem with a sparse Cholesky factorization.
     Newton,
+    /// Newton's method, its answer certified by the exact (Coulomb) formulation's residual
+    /// ([`NewtonSolver::certify_exact`]): accepted where no contact slides.
+    NewtonExact,
     /// Projected Gauss–Seidel.
     Pgs {
         /// Maximum sweeps.
@@ -35,16 +38,22 @@ impl SolverKind {
             SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
             SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
             SolverKind::Newton => Box::new(NewtonSolver::default()),
+            SolverKind::NewtonExact => {
+                let mut newton = NewtonSolver::default();
+                newton.certify_exact = true;
+                Box::new(newton)
+            }
             SolverKind::Pgs { iterations, omega } => Box::new(PgsSolver::new(iterations, 1e-10, omega, true)),
         }
     }
 
-    /// Parses `lemke`, `clarabel`, `newton`, `pgs` or `pgsN` (N ≥ 1 sweeps).
+    /// Parses `lemke`, `clarabel`, `newton`, `newton-exact`, `pgs` or `pgsN` (N ≥ 1 sweeps).
     pub fn parse(name: &str) -> Option<Self> {
         match name {
             "lemke" => Some(SolverKind::Lemke { facets: 8 }),
             "clarabel" => Some(SolverKind::Clarabel),
             "newton" => Some(SolverKind::Newton),
+            "newton-exact" => Some(SolverKind::NewtonExact),
             "pgs" => Some(SolverKind::Pgs { iterations: 50, omega: 1.0 }),
             other => other
                 .strip_prefix("pgs")
@@ -193,6 +202,7 @@ impl Default for WorldOptions {
             continuous_collision: true,
             friction: FrictionModel::Cone,
             solvers: vec![
+                SolverKind::NewtonExact,
                 SolverKind::Pgs { iterations: 100, omega: 1.0 },
                 SolverKind::Newton,
                 SolverKind::Clarabel,

@@ -51,7 +51,8 @@ pub struct Setting {
 }
 
 impl Setting {
-    /// Short solver label: `default`, `lemke`, `clarabel`, `newton`, `pgs10`, `pgs50`.
+    /// Short solver label: `default`, `lemke`, `clarabel`, `newton`, `newton-exact`, `pgs10`,
+    /// `pgs50`.
     pub fn solver_label(&self) -> String {
         if self.default_chain {
             return "default".into();
@@ -60,6 +61,7 @@ impl Setting {
             SolverKind::Lemke { .. } => "lemke".into(),
             SolverKind::Clarabel => "clarabel".into(),
             SolverKind::Newton => "newton".into(),
+            SolverKind::NewtonExact => "newton-exact".into(),
             SolverKind::Pgs { iterations, .. } => format!("pgs{iterations}"),
         }
     }

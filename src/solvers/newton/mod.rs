@@ -70,6 +70,13 @@ pub struct NewtonSolver {
     pub residual_goal: Option<f64>,
     /// Start from the impulses passed in (else from zero).
     pub warm_start: bool,
+    /// Certify answers by the exact complementarity formulation's residual
+    /// ([`Residuals::exact`], as PGS's and Lemke's are) instead of the convex relaxation's. The
+    /// relaxation agrees with Coulomb's law wherever contacts stick or separate (a resting
+    /// stack: Newton's answer is then exact); a sliding contact's relaxed answer separates at
+    /// μ‖w_t‖ and fails this certificate, so that a chain hands such a problem on to a solver of
+    /// the exact problem. Named `newton-exact` when set.
+    pub certify_exact: bool,
     /// W of a problem given by its dense A.
     own_w: RowSparsity,
     workspace: Workspace,
@@ -83,6 +90,7 @@ impl Default for NewtonSolver {
             epsilon: 1e-2,
             residual_goal: None,
             warm_start: true,
+            certify_exact: false,
             own_w: RowSparsity::default(),
             workspace: Workspace::default(),
         }
@@ -97,6 +105,7 @@ impl std::fmt::Debug for NewtonSolver {
             .field("epsilon", &self.epsilon)
             .field("residual_goal", &self.residual_goal)
             .field("warm_start", &self.warm_start)
+            .field("certify_exact", &self.certify_exact)
             .finish_non_exhaustive()
     }
 }
@@ -167,7 +176,11 @@ impl NewtonSolver {
 
 impl ConstraintSolver for NewtonSolver {
     fn name(&self) -> &'static str {
-        "newton"
+        if self.certify_exact {
+            "newton-exact"
+        } else {
+            "newton"
+        }
     }
 
     fn solve(
@@ -269,7 +282,11 @@ impl ConstraintSolver for NewtonSolver {
     }
 
     fn certify(&self, residuals: &Residuals) -> f64 {
-        residuals.convex()
+        if self.certify_exact {
+            residuals.exact()
+        } else {
+            residuals.convex()
+        }
     }
 
     fn set_certified_tolerance(&mut self, tolerance: f64) {
