@@ -655,3 +655,51 @@ fn a_stack_of_equal_boxes_keeps_four_contacts_per_face() {
     let drift = (w.multibody(top).state.q[2] - start).abs();
     assert!(drift < 1e-6, "the top box moved {drift} m in 1 s");
 }
+
+/// The default chain starts with `newton-exact`: a resting stack is answered by Newton's method
+/// certified on the exact formulation, a sliding box by PGS, the chain passing over
+/// `newton-exact` for `skip_first_after_miss` steps after each miss.
+#[test]
+fn the_default_chain_answers_resting_contacts_by_newton_and_sliding_ones_by_pgs() {
+    let mut options = WorldOptions { dt: 1.0 / 60.0, ..Default::default() };
+    options.contact = ContactParameters { mu: 0.5, ..Default::default() };
+    options.sleep.enabled = false;
+    let skip = options.skip_first_after_miss;
+    assert!(skip > 0);
+    let cube = || {
+        lone_body(
+            "box",
+            Shape::Box { size: Vec3::repeat(0.1) },
+            RigidInertia::solid_box(1.0, Vec3::repeat(0.1)),
+        )
+    };
+    // Five boxes stacked, resting: after they settle every step is Newton's.
+    let mut w = world_with_ground(options.clone(), Vec3::z());
+    for k in 0..5 {
+        let b = w.add_multibody(&format!("box{k}"), cube(), &MeshOptions::default()).unwrap();
+        w.multibody_mut(b).state.q[2] = 0.05 + 0.1 * k as f64;
+    }
+    for _ in 0..60 {
+        w.step().unwrap();
+    }
+    for _ in 0..120 {
+        let stats = w.step().unwrap();
+        assert_eq!(stats.solver, "newton-exact", "fallbacks {:?}", stats.fallbacks);
+    }
+    // A box sliding at 2 m/s (μ 0.5 stops it in 0.41 s, 24 steps): PGS answers every sliding
+    // step, and newton-exact is tried only on the first.
+    let mut w = world_with_ground(options, Vec3::z());
+    let b = w.add_multibody("box", cube(), &MeshOptions::default()).unwrap();
+    w.multibody_mut(b).state.q[2] = 0.05;
+    for _ in 0..30 {
+        w.step().unwrap();
+    }
+    w.multibody_mut(b).state.v[0] = 2.0;
+    let mut tried = 0;
+    for _ in 0..20 {
+        let stats = w.step().unwrap();
+        assert!(stats.solver.starts_with("pgs"), "a sliding step answered by {}", stats.solver);
+        tried += stats.fallbacks.iter().filter(|f| f.solver == "newton-exact").count();
+    }
+    assert_eq!(tried, 1, "newton-exact tried on {tried} of 20 sliding steps");
+}

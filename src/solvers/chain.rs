@@ -26,6 +26,9 @@ pub struct ChainReport {
     pub residuals: Residuals,
     /// Solvers tried before it.
     pub fallbacks: Vec<Fallback>,
+    /// Whether the chain passed over its first solver without trying it
+    /// ([`SolverChain::skip_after_miss`]).
+    pub skipped_first: bool,
     /// The solver's remark, if any.
     pub note: Option<String>,
 }
@@ -43,6 +46,14 @@ pub struct SolverChain {
     /// the warm start; a solver that failed hands on nothing. Off by default: on, clarabel's
     /// answers after a PGS miss change, and with them later warm starts (docs/solvers.md).
     pub hand_on: bool,
+    /// Calls for which the first solver of a chain of several is passed over after it missed,
+    /// when it is one that certifies only part of the problems it is given
+    /// ([`ConstraintSolver::certifies_part`]: `newton-exact` answers resting contacts, not
+    /// sliding ones), 0: always tried. Its misses come in runs (a box slides for many steps);
+    /// passing over it saves its cost on each. After this many calls it is tried again.
+    pub skip_after_miss: usize,
+    /// Calls left for which the first solver is passed over.
+    skipping: usize,
     w: DVector<f64>,
     candidate: DVector<f64>,
 }
@@ -55,6 +66,8 @@ impl SolverChain {
             tolerance,
             accept_last: false,
             hand_on: false,
+            skip_after_miss: 0,
+            skipping: 0,
             w: DVector::zeros(0),
             candidate: DVector::zeros(0),
         }
@@ -80,7 +93,9 @@ impl SolverChain {
             self.candidate.clone_from(lambda);
         }
         let mut hand = false;
-        for (k, solver) in self.solvers.iter_mut().enumerate() {
+        let skip_first = self.skipping > 0 && count > 1;
+        self.skipping = self.skipping.saturating_sub(1);
+        for (k, solver) in self.solvers.iter_mut().enumerate().skip(usize::from(skip_first)) {
             if hand && all_finite(self.candidate.as_slice()) {
                 // The last solver's answer missed the tolerance: the next starts from it.
             } else if self.candidate.len() == lambda.len() {
@@ -114,6 +129,7 @@ impl SolverChain {
                             iterations: info.iterations,
                             residuals: r,
                             fallbacks,
+                            skipped_first: skip_first,
                             note: info.note,
                         });
                     }
@@ -122,10 +138,16 @@ impl SolverChain {
                         reason: format!("residual {certified:.3e} above tolerance {:.1e}", self.tolerance),
                     });
                     hand = self.hand_on;
+                    if k == 0 && solver.certifies_part() {
+                        self.skipping = self.skip_after_miss;
+                    }
                 }
                 Err(e) => {
                     fallbacks.push(Fallback { solver: solver.name().to_string(), reason: e.to_string() });
                     hand = false;
+                    if k == 0 && solver.certifies_part() {
+                        self.skipping = self.skip_after_miss;
+                    }
                 }
             }
         }

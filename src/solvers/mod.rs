@@ -63,6 +63,14 @@ pub trait ConstraintSolver: Send {
     /// ([`SolverChain::tolerance`], before each solve): a solver that measures its own
     /// residual on the way may stop once it is well within it. Ignored by default.
     fn set_certified_tolerance(&mut self, _tolerance: f64) {}
+    /// Whether the solver solves a problem other than the one it is certified on, so that its
+    /// answers miss the certificate by design on some problems (`newton-exact`: the convex
+    /// relaxation, certified on the exact formulation, misses wherever a contact slides). A
+    /// chain passes over such a first solver for a while after it missed
+    /// ([`SolverChain::skip_after_miss`]). False by default.
+    fn certifies_part(&self) -> bool {
+        false
+    }
 }
 
 /// Checks the problem's sizes and finiteness once, for every solver.

@@ -129,6 +129,11 @@ pub struct WorldOptions {
     /// articulated bodies are answered by Newton's method on softened rows (`newton`,
     /// `clarabel` with [`Self::softness`] 0.1: models/ragdoll_crowd.toml).
     pub solvers: Vec<SolverKind>,
+    /// Steps for which an island's chain passes over its first solver after that solver
+    /// missed ([`SolverChain::skip_after_miss`]; 0: always tried). With the default chain, a
+    /// scene whose contacts slide skips `newton-exact`, which cannot certify them, for this
+    /// many steps at a time.
+    pub skip_first_after_miss: usize,
     /// Residual (m/s) a solver's answer must meet before the chain accepts it.
     pub tolerance: f64,
     /// Relative softness s of the inequality and box rows (contacts, joint limits, joint
@@ -207,6 +212,7 @@ impl Default for WorldOptions {
                 SolverKind::Newton,
                 SolverKind::Clarabel,
             ],
+            skip_first_after_miss: 30,
             tolerance: 1e-6,
             softness: 0.0,
             accept_last: true,
@@ -229,6 +235,7 @@ impl WorldOptions {
         let mut chain =
             SolverChain::new(self.solvers.iter().map(SolverKind::build).collect(), self.tolerance);
         chain.accept_last = self.accept_last;
+        chain.skip_after_miss = self.skip_first_after_miss;
         chain
     }
 }

@@ -141,6 +141,7 @@ impl StepStats {
             iterations: 0,
             residuals: Default::default(),
             fallbacks: Vec::new(),
+            skipped_first: false,
             note: None,
         });
         let certify = chain.certify(report.solver, &report.residuals);

@@ -289,6 +289,10 @@ impl ConstraintSolver for NewtonSolver {
         }
     }
 
+    fn certifies_part(&self) -> bool {
+        self.certify_exact
+    }
+
     fn set_certified_tolerance(&mut self, tolerance: f64) {
         self.residual_goal = Some(CERTIFIED_SHARE * tolerance);
     }
