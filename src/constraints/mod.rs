@@ -221,6 +221,25 @@ impl RowSparsity {
     pub fn entry_runs(&self, e: usize) -> &[(usize, usize, usize)] {
         &self.runs[self.entry_run_start[e]..self.entry_run_start[e + 1]]
     }
+    /// Appends row `i` of `source` as this structure's next row: its (row, block) entries with
+    /// the blocks renumbered by `local_block` (a block of `source` → its block here) and its
+    /// runs' columns moved from the source block's first column to that block's. The blocks
+    /// must be in place; the row's `row_norm2` is the caller's to push.
+    pub fn push_row_from(&mut self, source: &RowSparsity, i: usize, local_block: &[usize]) {
+        for e in source.row_start[i]..source.row_start[i + 1] {
+            let b = source.blocks_of_row[e];
+            let lb = local_block[b];
+            let (from, to) = (source.blocks[b].0, self.blocks[lb].0);
+            self.blocks_of_row.push(lb);
+            for &(col, start, len) in source.entry_runs(e) {
+                self.runs.push((col - from + to, self.w_values.len(), len));
+                self.w_values.extend_from_slice(&source.w_values[start..start + len]);
+            }
+            self.entry_run_start.push(self.runs.len());
+        }
+        self.row_start.push(self.blocks_of_row.len());
+        self.run_start.push(self.runs.len());
+    }
     /// The non-zero runs of row `i` of W: (first column in the stacked velocities, W's entries
     /// from there). Outside them row i of W is zero, so (A λ)_i = Σ W_i · (Wᵀλ) over them.
     pub fn row_spans(&self, i: usize) -> impl Iterator<Item = (usize, &[f64])> + '_ {

@@ -624,19 +624,7 @@ impl ContactProjector {
         local.block_start.clear();
         let diagonal = problem.kept_diagonal();
         for (l, &i) in self.normals.iter().enumerate() {
-            for e in sp.row_start[i]..sp.row_start[i + 1] {
-                let b = sp.blocks_of_row[e];
-                let lb = self.local_block[b];
-                let (from, to) = (sp.blocks[b].0, local.blocks[lb].0);
-                local.blocks_of_row.push(lb);
-                for &(col, start, len) in sp.entry_runs(e) {
-                    local.runs.push((col - from + to, local.w_values.len(), len));
-                    local.w_values.extend_from_slice(&sp.w_values[start..start + len]);
-                }
-                local.entry_run_start.push(local.runs.len());
-            }
-            local.row_start.push(local.blocks_of_row.len());
-            local.run_start.push(local.runs.len());
+            local.push_row_from(sp, i, &self.local_block);
             let a = diagonal.map_or_else(|| problem.delassus_entry(i, i), |d| d[i]);
             local.row_norm2.push(a);
             sub.bias[l] = self.gap[i];
