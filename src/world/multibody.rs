@@ -144,6 +144,8 @@ pub struct Multibody {
     /// end velocity along the directions no contact normal constrains
     /// ([`super::stages::midpoint`]); zero for any other multibody.
     pub(crate) midpoint_shift: Vec3,
+    /// Scratch of the shift: the span of this step's contact normals.
+    pub(crate) midpoint_span: super::stages::midpoint::NormalSpan,
     /// Scratch: `v_next + (position_correction + midpoint_shift) / h`, the velocity q is
     /// integrated with.
     step_velocity: DVector<f64>,
@@ -221,6 +223,7 @@ impl Multibody {
             position_correction: DVector::zeros(nv),
             corrected: false,
             midpoint_shift: Vec3::zeros(),
+            midpoint_span: Default::default(),
             step_velocity: DVector::zeros(nv),
             q_scratch: DVector::zeros(model.nq()),
             model,

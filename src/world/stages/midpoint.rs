@@ -49,47 +49,74 @@ pub(crate) struct MidpointInputs<'a> {
 
 /// Sets every multibody's `midpoint_shift` for a step of `h` seconds: zero but for awake lone
 /// free bodies (see the module documentation). `b.data` must hold the poses at the step's start.
+/// One pass over the contacts: each adds its normal to the span of the lone bodies it touches.
 pub(crate) fn run(bodies: &mut [Multibody], inputs: &MidpointInputs<'_>, h: f64) {
     for (i, b) in bodies.iter_mut().enumerate() {
         b.midpoint_shift = Vec3::zeros();
-        if !lone_free_body(i, b, inputs) {
-            continue;
-        }
-        let rotation = b.data.x_wb[1].rotation;
-        let mut span = [Vec3::zeros(); 3];
-        let mut rank = 0;
-        for c in inputs.contacts {
-            if rank == 3 {
-                break;
-            }
-            let touches =
-                |side: &Attachment| matches!(side, Attachment::Body { multibody, .. } if *multibody == i);
-            if !(touches(&c.body_a) || touches(&c.body_b)) {
-                continue;
-            }
-            let mut e = rotation.transpose() * c.normal;
-            for d in &span[..rank] {
-                e -= *d * d.dot(&e);
-            }
-            let norm = e.norm();
-            if norm > NEW_DIRECTION * c.normal.norm() {
-                span[rank] = e / norm;
-                rank += 1;
+        b.midpoint_span.lone = lone_free_body(i, b, inputs);
+        b.midpoint_span.rank = 0;
+    }
+    for c in inputs.contacts {
+        let a = match c.body_a {
+            Attachment::Body { multibody, .. } => Some(multibody),
+            Attachment::World => None,
+        };
+        let other = match c.body_b {
+            Attachment::Body { multibody, .. } if Some(multibody) != a => Some(multibody),
+            _ => None,
+        };
+        for m in [a, other].into_iter().flatten() {
+            let b = &mut bodies[m];
+            if b.midpoint_span.lone {
+                let rotation = b.data.x_wb[1].rotation;
+                b.midpoint_span.add(rotation.transpose() * c.normal, c.normal.norm());
             }
         }
-        if rank == 3 {
-            continue;
-        }
+    }
+    for b in bodies.iter_mut().filter(|b| b.midpoint_span.lone && b.midpoint_span.rank < 3) {
         let col = b.col;
-        let mut change = Vec3::new(
+        let change = Vec3::new(
             inputs.v_end[col] - inputs.v_start[col],
             inputs.v_end[col + 1] - inputs.v_start[col + 1],
             inputs.v_end[col + 2] - inputs.v_start[col + 2],
         );
-        for d in &span[..rank] {
-            change -= *d * d.dot(&change);
+        b.midpoint_shift = b.midpoint_span.off(change) * (-0.5 * h);
+    }
+}
+
+/// The span of a lone free body's contact normals in a step, in its body axes at the step's
+/// start: an orthonormal basis built by Gram–Schmidt in the contacts' order.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct NormalSpan {
+    /// Whether the multibody is a lone free body this step (else the span is not kept).
+    lone: bool,
+    basis: [Vec3; 3],
+    rank: usize,
+}
+
+impl NormalSpan {
+    /// Adds `normal` (body axes; `length` its length) unless it lies in the span already.
+    fn add(&mut self, normal: Vec3, length: f64) {
+        if self.rank == 3 {
+            return;
         }
-        b.midpoint_shift = change * (-0.5 * h);
+        let mut e = normal;
+        for d in &self.basis[..self.rank] {
+            e -= *d * d.dot(&e);
+        }
+        let norm = e.norm();
+        if norm > NEW_DIRECTION * length {
+            self.basis[self.rank] = e / norm;
+            self.rank += 1;
+        }
+    }
+
+    /// `v` less its components along the span.
+    fn off(&self, mut v: Vec3) -> Vec3 {
+        for d in &self.basis[..self.rank] {
+            v -= *d * d.dot(&v);
+        }
+        v
     }
 }
 
