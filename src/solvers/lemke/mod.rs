@@ -130,9 +130,23 @@ pub struct LemkeReport {
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
     /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
     pub near_solution: bool,
+    /// Whether the answer is that of a path from the first answer's basis with a finer LCP
+    /// tolerance, run because the first answer's residual on the problem missed the tolerance
+    /// the caller certifies against ([`LemkeSolver::certified_tolerance`]).
+    pub refined_to_level: bool,
 }
 
 impl LemkeReport {
+    /// Adds the counts of `other` (work done on the way to this report's answer).
+    fn add_work(&mut self, other: &LemkeReport) {
+        self.pivots += other.pivots;
+        self.attempts += other.attempts;
+        self.refactorizations += other.refactorizations;
+        self.lex_solves += other.lex_solves;
+        self.restarts += other.restarts;
+        self.swaps += other.swaps;
+    }
+
     /// The counts of this report and `later`'s summed (the facts of two solves in a row).
     fn merged(self, later: LemkeReport) -> LemkeReport {
         LemkeReport {
