@@ -173,6 +173,7 @@ impl ConstraintSolver for LemkeSolver {
                 &self.options,
                 start,
                 &mut |z| certify(lcp, z),
+                false,
             );
         }
         if let Err(done) = &warm {
@@ -188,6 +189,7 @@ impl ConstraintSolver for LemkeSolver {
                     &self.options,
                     &start,
                     &mut |z| certify(lcp, z),
+                    false,
                 )
                 .map(|mut solution| {
                     solution.report = done.clone().merged(solution.report);
@@ -279,10 +281,10 @@ fn pyramid_residual(problem: &ConstraintProblem, facets: usize, lcp: &SparseLcp,
 /// small friction bound. A path from the answer's basis ([`solve_from_basis`]: z0 lifts the
 /// slightly negative values along the covering vector B·1 and the path ends where it leaves
 /// again, within a few pivots) is run with the LCP tolerance a thousand times finer, so that its
-/// final basis is repaired (principal pivots, restarts) to that finer tolerance, or accepted
-/// once its residual on the problem is within `level`. Its answer replaces the first only
-/// when its natural residual is within Lemke's tolerance and its residual on the problem is
-/// lower.
+/// final basis is repaired (principal pivots, restarts) until its natural residual is within
+/// that finer tolerance or its residual on the problem within `level`. Its answer replaces the
+/// first only when its natural residual is within Lemke's tolerance and its residual on the
+/// problem is lower.
 fn refine_to_level(
     problem: &ConstraintProblem,
     facets: usize,
@@ -306,7 +308,7 @@ fn refine_to_level(
         residual_of_columns(&columns(), &lcp.q, z.as_slice()) <= tolerance
             && pyramid_residual(problem, facets, lcp, z) <= level
     };
-    match solve_from_basis(&mut columns(), &lcp.q, &finer, &start, &mut certify) {
+    match solve_from_basis(&mut columns(), &lcp.q, &finer, &start, &mut certify, true) {
         Ok(candidate) => {
             let after = pyramid_residual(problem, facets, lcp, &candidate.z);
             if candidate.report.residual <= tolerance && after < before {
