@@ -339,6 +339,17 @@ pub enum SolverError {
         /// Pivots done (over all paths).
         pivots: usize,
     },
+    /// Lemke's method used up its work budget ([`crate::solvers::LemkeOptions::max_operations`],
+    /// or the share of its later paths, [`crate::solvers::LemkeOptions::fallback_share`])
+    /// without an answer: on large degenerate LCPs (thousands of variables
+    /// with a dense basis) each pivot costs O(k²) and a refactorization O(k³).
+    #[error("Lemke: work budget of {budget:.1e} operations used up after {pivots} pivots (LemkeOptions::max_operations and fallback_share)")]
+    LemkeWorkLimit {
+        /// Pivots done (over all paths).
+        pivots: usize,
+        /// The budget (floating-point operations, estimated from the basis's sizes).
+        budget: f64,
+    },
     /// Lemke's method met a basis whose LU is singular to working precision.
     #[error("Lemke: singular basis after {pivots} pivots (smallest/largest LU pivot {ratio:.1e})")]
     LemkeSingularBasis {

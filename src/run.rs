@@ -227,8 +227,9 @@ pub struct RunSummary {
     pub largest_island: usize,
     /// Mean iterations (or pivots) per solved step.
     pub mean_iterations: f64,
-    /// Wall-clock seconds per phase of the step, summed: kinematics, collision, free motion, rows
-    /// and assembly, solve, integration and sleeping, contact projection.
+    /// Wall-clock seconds per phase of the step, summed over the steps, in the order of
+    /// [`crate::world::PHASE_NAMES`]: kinematics, collision, free motion, rows and assembly,
+    /// solve, integration and sleeping, contact projection.
     pub phase_time: [f64; 7],
     /// The recorded trajectory.
     #[serde(skip)]

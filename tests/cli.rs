@@ -357,4 +357,7 @@ fn simulate_prints_its_summary_and_records_the_states() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.starts_with("ball_bounce: 100 steps of 0.002 s"), "{text}");
     assert!(text.contains(&format!("solver: {solved} steps with rows")), "{text}");
+    let phases = text.lines().find_map(|l| l.strip_prefix("mean µs per phase: ")).expect("the phases' line");
+    let names: Vec<&str> = phases.split(", ").map(|p| p.split(' ').next().unwrap()).collect();
+    assert_eq!(names, gelenk::world::PHASE_NAMES);
 }

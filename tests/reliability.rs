@@ -154,3 +154,33 @@ fn pgs_refuses_to_return_nan_impulses_on_a_subnormal_diagonal() {
     let mut lambda = DVector::zeros(problem.rows());
     assert_eq!(solver.solve(&problem, &mut lambda).unwrap_err(), SolverError::NonFinite { solver: "pgs" });
 }
+
+/// Ten floating rovers stacked through each other on Lemke alone (a finding of the scene
+/// fuzzer, `tests/fuzz_corpus/scene/found-overlapping-huskies-lemke.toml`): an LCP of about
+/// 6 000 variables whose every path ends on a ray. The paths after the first stop at their share
+/// of the work (`LemkeOptions::fallback_share`), and the step is the typed error that says so.
+#[test]
+fn lemke_on_an_lcp_no_path_solves_stops_at_its_work_budget() {
+    let path = manifest("tests/fuzz_corpus/scene/found-overlapping-huskies-lemke.toml");
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut scene = scene::load_str(&text, manifest("models")).unwrap();
+    let error = scene.world.step().expect_err("no path solves this LCP").to_string();
+    assert!(error.contains("work budget of 4.0e9 operations"), "{error}");
+}
+
+/// `LemkeOptions::max_operations` bounds a solve's work: a positive definite LCP that Lemke
+/// solves by default ends with the typed error at a budget too small for its first pivot.
+#[test]
+fn lemke_respects_its_operations_budget() {
+    use gelenk::solvers::{lemke_with_report, LemkeOptions};
+    let n = 40;
+    let m = nalgebra::DMatrix::from_fn(n, n, |i, j| if i == j { 4.0 } else { 1.0 / (1.0 + (i + j) as f64) });
+    let q = DVector::from_fn(n, |i, _| if i % 2 == 0 { -1.0 } else { 0.5 });
+    let (_, report) = lemke_with_report(&m, &q, &LemkeOptions::default()).unwrap();
+    assert!(report.operations > 0.0);
+    let tight = LemkeOptions { max_operations: 0.5 * report.operations, ..LemkeOptions::default() };
+    match lemke_with_report(&m, &q, &tight) {
+        Err(SolverError::LemkeWorkLimit { budget, .. }) => assert_eq!(budget, tight.max_operations),
+        other => panic!("expected the work limit, got {other:?}"),
+    }
+}

@@ -48,7 +48,7 @@ pub use multibody::{Motor, Multibody, PoseServo, Servo};
 pub use options::{SleepOptions, SolverKind, WorldOptions};
 pub use projection::LoopProjection;
 pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
-pub use stats::StepStats;
+pub use stats::{StepStats, PHASE_NAMES};
 pub use warm_start::WARM_MATCH_DISTANCE;
 
 use crate::collision::{CollisionWorld, Contact, MeshOptions};

@@ -64,6 +64,12 @@ pub struct StepStats {
     pub projection: super::ProjectionStats,
 }
 
+/// The names of the timed phases of a step, in the order of [`StepStats::phase_ns`]:
+/// kinematics, collision detection, free motion, rows and the problem's assembly, the solve,
+/// integration with sleeping, and the contact projection.
+pub const PHASE_NAMES: [&str; 7] =
+    ["kinematics", "collision", "free_motion", "assembly", "solve", "integrate", "projection"];
+
 /// The phases of a step timed by [`PhaseTimer`], in the order of [`StepStats::phase_ns`].
 #[derive(Clone, Copy, Debug)]
 pub(crate) enum Phase {

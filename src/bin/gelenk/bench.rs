@@ -311,8 +311,7 @@ fn bench_world(
     };
     let phase: Vec<f64> = (0..7).map(|k| median(phases.iter().map(|p| p[k]).collect())).collect();
     let (median_us, mean_us) = (median(medians), median(means));
-    const PHASES: [&str; 7] =
-        ["kinematics", "collision", "free_motion", "assembly", "solve", "integrate", "projection"];
+    const PHASES: [&str; 7] = gelenk::world::PHASE_NAMES;
     if as_json {
         let phase_json: serde_json::Map<String, serde_json::Value> =
             PHASES.iter().zip(&phase).map(|(n, us)| (n.to_string(), json!(us))).collect();

@@ -126,6 +126,13 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
             summary.mean_iterations
         );
         println!("islands: up to {} in a step, largest {} rows", summary.max_islands, summary.largest_island);
+        let per_step = 1e6 / summary.steps.max(1) as f64;
+        let phases: Vec<String> = gelenk::world::PHASE_NAMES
+            .iter()
+            .zip(&summary.phase_time)
+            .map(|(name, seconds)| format!("{name} {:.1}", seconds * per_step))
+            .collect();
+        println!("mean µs per phase: {}", phases.join(", "));
     }
     Ok(())
 }

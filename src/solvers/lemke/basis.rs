@@ -46,6 +46,10 @@ pub(super) struct Basis {
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     stack: MemBuffer,
+    /// Floating-point operations of the solves and factorizations so far (an estimate from the
+    /// sizes: 2k² per triangular pair, ⅔k³ per LU, one per eta entry and per row), the measure
+    /// of a path's work that [`super::LemkeOptions::max_operations`] bounds.
+    pub operations: f64,
     /// Scratch of the LU factorization, grown as k grows.
     factor_stack: MemBuffer,
     factor_stack_k: usize,
@@ -105,6 +109,7 @@ impl Basis {
             work_by_position: vec![0.0; n],
             small: vec![0.0; n],
             refactorizations: 0,
+            operations: 0.0,
         }
     }
 
@@ -137,6 +142,7 @@ impl Basis {
     /// x = B_0⁻¹ work (work by row, destroyed).
     fn solve_b0_from_work(&mut self, cols: &Columns, x: &mut [f64]) {
         let k = self.rows_n.len();
+        self.operations += (2 * k * k + self.n) as f64;
         if k > 0 {
             let y = &mut self.small[..k];
             let mut any = false;
@@ -181,6 +187,8 @@ impl Basis {
     /// non-unit columns J, by the transposed LU solve.
     pub fn solve_transpose(&mut self, cols: &Columns, c: &[f64], y: &mut [f64]) {
         debug_assert!(c.len() == self.n && y.len() == self.n);
+        let k = self.rows_n.len();
+        self.operations += (2 * k * k + self.n + self.eta_index.len()) as f64;
         let v = &mut self.work_by_position;
         v.copy_from_slice(c);
         for t in (0..self.eta_pos.len()).rev() {
@@ -196,7 +204,6 @@ impl Basis {
         for (i, &p) in self.w_pos.iter().enumerate() {
             y[i] = if p != NONE { v[p] } else { 0.0 };
         }
-        let k = self.rows_n.len();
         if k == 0 {
             return;
         }
@@ -227,7 +234,8 @@ impl Basis {
     }
 
     /// x ← E_t⁻¹ ⋯ E_1⁻¹ x.
-    fn apply_etas(&self, x: &mut [f64]) {
+    fn apply_etas(&mut self, x: &mut [f64]) {
+        self.operations += self.eta_index.len() as f64;
         for t in 0..self.eta_pos.len() {
             let r = self.eta_pos[t];
             let xr = x[r] / self.eta_pivot[t];
@@ -288,6 +296,7 @@ impl Basis {
         self.eta_index.clear();
         self.eta_value.clear();
         let k = self.rows_n.len();
+        self.operations += 2.0 * (k as f64).powi(3) / 3.0 + n as f64;
         debug_assert_eq!(k, self.col_pos.len(), "as many non-unit columns as rows without a basic w");
         self.lu.clear();
         self.lu.resize(k * k, 0.0);

@@ -87,7 +87,24 @@ pub struct LemkeOptions {
     /// keeps the blocks at the size of the answer's active set and the overshoots, cleaned by
     /// [`path::Path::clean`] and restarts, within the tolerance.
     pub degeneracy_tolerance: f64,
+    /// Most floating-point operations of the bases' solves and factorizations over all paths
+    /// of one solve (estimated from their sizes; 0: no limit but the pivots'). A pivot costs
+    /// O(k²) and a refactorization O(k³) in the size k of the basis's factorized block, so that
+    /// a pivot limit alone does not bound the time of a large LCP; beyond this budget the solve
+    /// ends with [`SolverError::LemkeWorkLimit`].
+    pub max_operations: f64,
+    /// The paths after the first (other covering vectors, the unscaled LCP) may spend together
+    /// at most this multiple of the first path's operations, or of 10⁹ if that is more (0: no
+    /// such limit). The first path is the one that answers a contact LCP; the others rescue
+    /// the degenerate ones whose first path ends on rounding, at the first path's cost or
+    /// less. Without the limit an LCP no path solves (ten interpenetrating rovers: 6 000
+    /// variables, every path ending on a ray) costs eight full paths, each pivot O(k²) in a
+    /// dense basis.
+    pub fallback_share: f64,
 }
+
+/// The least first-path work [`LemkeOptions::fallback_share`] is a multiple of (operations).
+const FALLBACK_FLOOR: f64 = 1e9;
 
 impl Default for LemkeOptions {
     fn default() -> Self {
@@ -97,6 +114,8 @@ impl Default for LemkeOptions {
             tolerance: 1e-9,
             refactor_interval: 0,
             degeneracy_tolerance: 2.5e-10,
+            max_operations: 0.0,
+            fallback_share: 4.0,
         }
     }
 }
@@ -110,6 +129,9 @@ pub struct LemkeReport {
     pub attempts: usize,
     /// Refactorizations of the basis over all attempts.
     pub refactorizations: usize,
+    /// Floating-point operations of the bases' solves and factorizations over all attempts
+    /// (estimated from their sizes, [`LemkeOptions::max_operations`]).
+    pub operations: f64,
     /// Solves with unit vectors for lexicographic tie-breaks.
     pub lex_solves: usize,
     /// Size k of the last factorized block.
@@ -153,6 +175,7 @@ impl LemkeReport {
             pivots: self.pivots + later.pivots,
             attempts: self.attempts + later.attempts,
             refactorizations: self.refactorizations + later.refactorizations,
+            operations: self.operations + later.operations,
             lex_solves: self.lex_solves + later.lex_solves,
             restarts: self.restarts + later.restarts,
             swaps: self.swaps + later.swaps,
@@ -351,11 +374,21 @@ fn is_complementary(vars: &[usize], n: usize) -> bool {
         })
 }
 
+/// The operations a solve may spend ([`LemkeOptions::max_operations`]).
+fn budget_of(options: &LemkeOptions) -> f64 {
+    if options.max_operations > 0.0 {
+        options.max_operations
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// The options of a path for an LCP of size n, and the accepted natural residual.
 fn path_options(options: &LemkeOptions, q: &DVector<f64>) -> (PathOptions, f64) {
     let n = q.len();
     let path_options = PathOptions {
         max_pivots: if options.max_pivots == 0 { 10 * n + 100 } else { options.max_pivots },
+        max_operations: budget_of(options),
         pivot_tolerance: options.pivot_tolerance,
         refactor_interval: options.refactor_interval,
         degeneracy_tolerance: options.degeneracy_tolerance,
@@ -417,6 +450,7 @@ fn solve_from_basis(
     let end = path.restart(start);
     report.attempts += 1;
     report.pivots += path.pivots;
+    report.operations += path.basis.operations;
     report.lex_solves += path.lex_solves;
     report.refactorizations += path.basis.refactorizations;
     report.factorized_size = path.basis.factorized_size();
@@ -490,6 +524,9 @@ fn solve_sparse(
     let mut best: Option<(DVector<f64>, f64, Option<Vec<usize>>)> = None;
     let mut failure: Option<SolverError> = None;
     let mut blocks = None;
+    // Operations done before the first path (a warm start's), and after it.
+    let before = report.operations;
+    let mut first_path: Option<f64> = None;
     for (scaled, covering) in ATTEMPTS {
         if !scaled && equilibrated.scaling.is_identity() {
             continue; // the same path as the equilibrated one
@@ -497,6 +534,22 @@ fn solve_sparse(
         if matches!(covering, Covering::Random(_)) && best.is_some() {
             break; // an answer to hand on (above the tolerance): the random paths are for none
         }
+        let mut remaining = path_options.max_operations - report.operations;
+        let mut limit = path_options.max_operations;
+        if let Some(first) = first_path {
+            // The paths after the first share a budget in proportion to the first's work.
+            let share = options.fallback_share;
+            if share > 0.0 {
+                let fallbacks = share * (first - before).max(FALLBACK_FLOOR);
+                remaining = remaining.min(fallbacks - (report.operations - first));
+                limit = limit.min(fallbacks);
+            }
+        }
+        if remaining <= 0.0 {
+            failure = Some(SolverError::LemkeWorkLimit { pivots: report.pivots, budget: limit });
+            break;
+        }
+        let path_options = PathOptions { max_operations: remaining, ..path_options };
         let scaling = if scaled { &equilibrated.scaling } else { &identity };
         let cols = Columns {
             m: Matrix::Formed(if scaled { &equilibrated.m } else { m }),
@@ -505,6 +558,7 @@ fn solve_sparse(
         let q_scaled = scaled_q(scaling);
         let outcome =
             attempt(m, q, &cols, &q_scaled, scaling, covering, scaled, path_options, tolerance, &mut report);
+        first_path.get_or_insert(report.operations);
         match outcome {
             Attempt::Solved(solution) => return Ok(solution),
             Attempt::Inaccurate(mut z, mut residual, basis) => {
@@ -536,9 +590,14 @@ fn solve_sparse(
                     best = Some((z, residual, basis));
                 }
             }
-            Attempt::Failed(error, infeasible) => {
-                failure = Some(error);
-                if infeasible {
+            Attempt::Failed(error, last) => {
+                failure = Some(match error {
+                    SolverError::LemkeWorkLimit { pivots, .. } => {
+                        SolverError::LemkeWorkLimit { pivots, budget: limit }
+                    }
+                    error => error,
+                });
+                if last {
                     break;
                 }
             }
@@ -552,6 +611,9 @@ fn solve_sparse(
         (None, Some(SolverError::LemkeRay { certificate, .. })) => {
             Err(SolverError::LemkeRay { pivots: report.pivots, certificate })
         }
+        (None, Some(SolverError::LemkeWorkLimit { budget, .. })) => {
+            Err(SolverError::LemkeWorkLimit { pivots: report.pivots, budget })
+        }
         (None, Some(e)) => Err(e),
         (None, None) => Err(SolverError::PivotLimit { pivots: report.pivots }),
     }
@@ -563,7 +625,8 @@ enum Attempt {
     Solved(Solution),
     /// The path's best answer, above the tolerance, with its residual and basis.
     Inaccurate(DVector<f64>, f64, Option<Vec<usize>>),
-    /// The path failed; whether its ray proves the LCP infeasible.
+    /// The path failed; whether no further path is to be tried (its ray proves the LCP
+    /// infeasible, or the solve's work budget is spent).
     Failed(SolverError, bool),
 }
 
@@ -587,6 +650,7 @@ fn attempt(
     let end = path.run();
     report.attempts += 1;
     report.pivots += path.pivots;
+    report.operations += path.basis.operations;
     report.lex_solves += path.lex_solves;
     report.refactorizations += path.basis.refactorizations;
     report.factorized_size = path.basis.factorized_size();
@@ -636,6 +700,10 @@ fn attempt(
         }
         PathEnd::PivotLimit => {
             Attempt::Failed(SolverError::PivotLimit { pivots: path_options.max_pivots }, false)
+        }
+        // The budget is the solve's: no further path.
+        PathEnd::WorkLimit => {
+            Attempt::Failed(SolverError::LemkeWorkLimit { pivots: report.pivots, budget: f64::NAN }, true)
         }
         PathEnd::Cycle => Attempt::Failed(SolverError::LemkeCycle { pivots: report.pivots }, false),
         PathEnd::Singular(singular) => Attempt::Failed(
@@ -718,6 +786,7 @@ fn repair_final_basis(
         let restart_end = restart.restart(&vars);
         report.restarts += 1;
         report.pivots += restart.pivots;
+        report.operations += restart.basis.operations;
         report.lex_solves += restart.lex_solves;
         report.refactorizations += restart.basis.refactorizations;
         if restart_end != PathEnd::Solved {

@@ -27,6 +27,8 @@ pub(super) enum PathEnd {
     },
     /// The pivot limit was reached.
     PivotLimit,
+    /// The basis's operations reached [`PathOptions::max_operations`].
+    WorkLimit,
     /// A basis came back (rounding defeated the anti-cycling rule): the path would cycle.
     Cycle,
     /// A refactorization found the basis singular.
@@ -38,6 +40,8 @@ pub(super) enum PathEnd {
 pub(super) struct PathOptions {
     /// Pivots allowed.
     pub max_pivots: usize,
+    /// Operations of the basis ([`Basis::operations`]) allowed.
+    pub max_operations: f64,
     /// A column entry must exceed this fraction of the column's largest to be a pivot.
     pub pivot_tolerance: f64,
     /// Updates between refactorizations (0: chosen from the sizes).
@@ -177,6 +181,9 @@ impl<'a> Path<'a> {
             }
             if self.pivots >= self.options.max_pivots {
                 return PathEnd::PivotLimit;
+            }
+            if self.basis.operations >= self.options.max_operations {
+                return PathEnd::WorkLimit;
             }
             if !self.seen.insert(self.basis_hash) {
                 return PathEnd::Cycle;
