@@ -164,6 +164,7 @@ impl LemkeReport {
         self.pivots += other.pivots;
         self.attempts += other.attempts;
         self.refactorizations += other.refactorizations;
+        self.operations += other.operations;
         self.lex_solves += other.lex_solves;
         self.restarts += other.restarts;
         self.swaps += other.swaps;

@@ -303,7 +303,15 @@ fn refine_to_level(
         Some(m) => Columns { m: Matrix::Formed(m), d: Vec::new() },
         None => Columns { m: Matrix::Lazy(lcp), d: Vec::new() },
     };
-    let finer = LemkeOptions { tolerance: 1e-3 * options.tolerance, ..*options };
+    // The refinement spends what is left of the solve's budget of operations.
+    let max_operations = match options.max_operations {
+        budget if budget > 0.0 => budget - solution.report.operations,
+        _ => 0.0,
+    };
+    if options.max_operations > 0.0 && max_operations <= 0.0 {
+        return;
+    }
+    let finer = LemkeOptions { tolerance: 1e-3 * options.tolerance, max_operations, ..*options };
     let mut certify = |z: &DVector<f64>| {
         residual_of_columns(&columns(), &lcp.q, z.as_slice()) <= tolerance
             && pyramid_residual(problem, facets, lcp, z) <= level
