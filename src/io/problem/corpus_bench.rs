@@ -266,6 +266,25 @@ pub fn bench_csv(rows: &[BenchRow]) -> String {
     s
 }
 
+/// One line per run as CSV: id, family, rows, solver, certified residual (m/s, empty when
+/// the run failed or was skipped), time (s), note (why there is no residual; quoted).
+pub fn runs_csv(runs: &[BenchRun]) -> String {
+    let mut s = String::from("id,family,rows,solver,residual,time_s,note\n");
+    for r in runs {
+        s.push_str(&format!(
+            "{},{},{},{},{},{:e},\"{}\"\n",
+            r.id,
+            r.family,
+            r.rows,
+            r.solver.name(),
+            r.residual.map_or(String::new(), |x| format!("{x:e}")),
+            r.time,
+            r.note.as_deref().unwrap_or("").replace('"', "\"\"")
+        ));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -293,5 +312,9 @@ mod tests {
         assert!((table[0].time_sgm - 0.001).abs() < 1e-12);
         assert_eq!(table[2].problems, 4);
         assert!(bench_csv(&table).lines().count() == 4 && bench_text(&table).contains("all"));
+        let lines: Vec<String> = runs_csv(&runs).lines().map(String::from).collect();
+        assert_eq!(lines.len(), 5);
+        assert_eq!(lines[1], "p,a,3,pgs,1e-4,1e-3,\"\"");
+        assert_eq!(lines[3], "p,b,3,pgs,,5e-1,\"\"");
     }
 }

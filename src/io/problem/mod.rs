@@ -52,8 +52,8 @@ pub use corpus::{
     ResidualRecord, SolveStatus, SolverRecord,
 };
 pub use corpus_bench::{
-    bench_csv, bench_run, bench_table, bench_text, BenchOptions, BenchRow, BenchRun, BenchSolver, LEVELS,
-    TIME_SHIFT,
+    bench_csv, bench_run, bench_table, bench_text, runs_csv, BenchOptions, BenchRow, BenchRun, BenchSolver,
+    LEVELS, TIME_SHIFT,
 };
 pub use corpus_build::{
     build_corpus, degenerate_rows, index_csv, read_index, reference_solution, BuildOptions, BuildSummary,
