@@ -18,8 +18,10 @@
 //! order (the last basis, in the wrong places, is passed over for the one read from the
 //! impulses); a problem with the last M is solved from its last basis with q alone formed; told
 //! its chain's tolerance, Lemke accepts an answer above its own LCP tolerance that the problem's
-//! residual certifies instead of running more paths; on frictionless contacts, whose row
-//! velocities are unique, Lemke and clarabel agree.
+//! residual certifies instead of running more paths, and refines an answer within its LCP
+//! tolerance whose residual on the problem misses the chain's (1e-9 m/s on a buggy's and a
+//! humanoid pile's corpus problems) by a path from its basis; on frictionless contacts, whose
+//! row velocities are unique, Lemke and clarabel agree.
 
 use gelenk::collision::MeshOptions;
 use gelenk::constraints::{ConstraintProblem, ContactBlock, FrictionModel, RowLaw};
@@ -665,4 +667,35 @@ fn an_answer_the_chain_certifies_ends_the_solve() {
         report.pivots,
         alone.memory.last.pivots
     );
+}
+
+#[test]
+fn an_answer_within_the_lcp_tolerance_is_refined_to_the_level_it_is_certified_against() {
+    // Two corpus problems (a buggy on terrain, cone friction as 8 facets; a humanoid of the
+    // pile, joint limits and 4-facet pyramids) whose first answer meets Lemke's LCP tolerance
+    // (1e-9 relative to max(1, ‖q‖∞)) but not 1e-9 m/s on the problem: its final basis leaves
+    // friction facets a few 1e-9 below zero, which the dissipation gap counts per unit of a
+    // small friction bound. Told 1e-9 m/s, Lemke refines the answer by a path from its basis.
+    for name in ["lemke_buggy_terrain_s0089_problem.json", "lemke_humanoid_pile_s0399_problem.json"] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
+        let problem =
+            gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+        let certifying = CorpusSolver::Lemke.certifying_problem(&problem);
+        let q = lcp_of(&problem, 8).q;
+        let lcp_tolerance = LemkeOptions::default().tolerance * q.amax().max(1.0);
+        let mut alone = LemkeSolver::default();
+        let mut lambda = DVector::zeros(problem.rows());
+        alone.solve(&problem, &mut lambda).unwrap();
+        let r = alone.certify(&residuals(&certifying, &lambda, &mut DVector::zeros(0)));
+        assert!(r > 1e-9 && alone.memory.last.residual <= lcp_tolerance, "{name}: alone {r:e} m/s");
+        let mut told = LemkeSolver::default();
+        told.set_certified_tolerance(1e-9);
+        let mut lambda = DVector::zeros(problem.rows());
+        told.solve(&problem, &mut lambda).unwrap();
+        let report = &told.memory.last;
+        let r = told.certify(&residuals(&certifying, &lambda, &mut DVector::zeros(0)));
+        assert!(r <= 1e-9, "{name}: told 1e-9 m/s, {r:e} m/s ({report:?})");
+        assert!(report.refined_to_level && report.residual <= lcp_tolerance, "{name}: {report:?}");
+        eprintln!("{name}: {r:.1e} m/s, {} pivots", report.pivots);
+    }
 }

@@ -163,6 +163,18 @@ pub(crate) fn residuals_at_velocities(
     lambda: &DVector<f64>,
     w: &[f64],
 ) -> Residuals {
+    residuals_with_friction(problem, problem.friction, lambda, w)
+}
+
+/// [`residuals_at_velocities`] with the contacts' friction sets given by `friction` instead of
+/// `problem.friction` (Lemke's answer to a cone problem measured on the pyramid it solves,
+/// without a copy of the problem).
+pub(crate) fn residuals_with_friction(
+    problem: &ConstraintProblem,
+    friction: FrictionModel,
+    lambda: &DVector<f64>,
+    w: &[f64],
+) -> Residuals {
     let n = problem.rows();
     let kept = problem.kept_diagonal();
     let d = |i: usize| {
@@ -221,7 +233,7 @@ pub(crate) fn residuals_at_velocities(
         let (s1, s2) = (scaled(l1, c.mu), scaled(l2, c.mu2));
         let zero_mu_excess =
             (if c.mu > 0.0 { 0.0 } else { l1.abs() }).max(if c.mu2 > 0.0 { 0.0 } else { l2.abs() });
-        let violation = match problem.friction {
+        let violation = match friction {
             FrictionModel::Cone => (norm2(s1, s2) - ln.max(0.0)).max(0.0),
             FrictionModel::Pyramid { facets } => pyramid_violation(facets, s1, s2, ln),
         };
@@ -230,7 +242,7 @@ pub(crate) fn residuals_at_velocities(
         // The support of the friction set's unit section in −w_t: max over it of −f·w_t (the
         // ellipse's ‖(μ w₁, μ₂ w₂)‖, or the pyramid's largest vertex term).
         let (m1, m2) = (c.mu * w1, c.mu2 * w2);
-        let support = match problem.friction {
+        let support = match friction {
             FrictionModel::Cone => norm2(m1, m2),
             FrictionModel::Pyramid { facets } => pyramid_support(facets, m1, m2),
         };

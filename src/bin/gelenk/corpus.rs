@@ -77,6 +77,9 @@ pub struct BenchArgs {
     /// CSV output (default: DIR/bench.csv).
     #[arg(long)]
     csv: Option<PathBuf>,
+    /// Per-run CSV output (one line per problem and solver: residual, time, note).
+    #[arg(long)]
+    runs_csv: Option<PathBuf>,
 }
 
 /// Runs a `gelenk corpus` command.
@@ -181,6 +184,9 @@ fn bench(args: &BenchArgs) -> Result<(), String> {
     print!("{}", problem::bench_text(&table));
     let csv = args.csv.clone().unwrap_or_else(|| args.dir.join("bench.csv"));
     std::fs::write(&csv, problem::bench_csv(&table)).map_err(|e| format!("{}: {e}", csv.display()))?;
+    if let Some(path) = &args.runs_csv {
+        std::fs::write(path, problem::runs_csv(&runs)).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
     println!("{} problems, table written to {}", chosen.len(), csv.display());
     Ok(())
 }

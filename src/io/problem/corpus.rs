@@ -194,7 +194,16 @@ pub fn objective(problem: &ConstraintProblem, lambda: &DVector<f64>) -> f64 {
 /// Solves `problem` with `kind` (from zero impulses) and records the outcome; also returns the
 /// solver's wall-clock time.
 pub fn run_solver(kind: CorpusSolver, problem: &ConstraintProblem) -> (SolverRecord, Duration) {
-    let mut solver = kind.solver();
+    run_configured_solver(kind, kind.solver(), problem)
+}
+
+/// [`run_solver`] with `solver`, a solver of `kind` configured by the caller (the corpus bench's
+/// Lemke, told the tolerance it is certified against).
+pub fn run_configured_solver(
+    kind: CorpusSolver,
+    mut solver: Box<dyn ConstraintSolver>,
+    problem: &ConstraintProblem,
+) -> (SolverRecord, Duration) {
     let mut lambda = DVector::zeros(problem.rows());
     let start = Instant::now();
     let result = solver.solve(problem, &mut lambda);

@@ -8,7 +8,7 @@
 //! geometric mean `exp(mean(ln(t + s))) − s` uses the shift s = [`TIME_SHIFT`]; a run that does
 //! not reach 1e-3 m/s (or fails, or is skipped) counts as the time limit, as qpbenchmark does.
 
-use super::{run_solver, CorpusSolver, SolveStatus};
+use super::{run_configured_solver, CorpusSolver, SolveStatus};
 use crate::constraints::ConstraintProblem;
 use crate::solvers::{residuals, ConstraintSolver, NewtonSolver, PgsSolver};
 use nalgebra::DVector;
@@ -28,8 +28,8 @@ pub enum BenchSolver {
     Pgs,
     /// [`NewtonSolver`] with default options, asked for 1e-9 m/s.
     Newton,
-    /// Lemke's method (as [`CorpusSolver::Lemke`]), on problems up to
-    /// [`BenchOptions::lemke_max_rows`] rows.
+    /// Lemke's method (as [`CorpusSolver::Lemke`], told the certified tolerance 1e-9 m/s), on
+    /// problems up to [`BenchOptions::lemke_max_rows`] rows.
     Lemke,
 }
 
@@ -122,7 +122,13 @@ pub fn bench_run(
         BenchSolver::Pgs | BenchSolver::Newton => None,
     };
     if let Some(kind) = corpus {
-        let (record, elapsed) = run_solver(kind, problem);
+        let mut configured = kind.solver();
+        if kind == CorpusSolver::Lemke {
+            // Told the finest level of the table, as the Newton solver is: an answer within
+            // Lemke's LCP tolerance whose residual misses it is polished.
+            configured.set_certified_tolerance(LEVELS[2]);
+        }
+        let (record, elapsed) = run_configured_solver(kind, configured, problem);
         run.time = elapsed.as_secs_f64();
         match record.status {
             SolveStatus::Failed => run.note = record.message,
@@ -260,6 +266,25 @@ pub fn bench_csv(rows: &[BenchRow]) -> String {
     s
 }
 
+/// One line per run as CSV: id, family, rows, solver, certified residual (m/s, empty when
+/// the run failed or was skipped), time (s), note (why there is no residual; quoted).
+pub fn runs_csv(runs: &[BenchRun]) -> String {
+    let mut s = String::from("id,family,rows,solver,residual,time_s,note\n");
+    for r in runs {
+        s.push_str(&format!(
+            "{},{},{},{},{},{:e},\"{}\"\n",
+            r.id,
+            r.family,
+            r.rows,
+            r.solver.name(),
+            r.residual.map_or(String::new(), |x| format!("{x:e}")),
+            r.time,
+            r.note.as_deref().unwrap_or("").replace('"', "\"\"")
+        ));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -287,5 +312,9 @@ mod tests {
         assert!((table[0].time_sgm - 0.001).abs() < 1e-12);
         assert_eq!(table[2].problems, 4);
         assert!(bench_csv(&table).lines().count() == 4 && bench_text(&table).contains("all"));
+        let lines: Vec<String> = runs_csv(&runs).lines().map(String::from).collect();
+        assert_eq!(lines.len(), 5);
+        assert_eq!(lines[1], "p,a,3,pgs,1e-4,1e-3,\"\"");
+        assert_eq!(lines[3], "p,b,3,pgs,,5e-1,\"\"");
     }
 }

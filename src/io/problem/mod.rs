@@ -48,12 +48,12 @@ pub use cbf::{
 };
 pub use cone::{clarabel_settings, cone_json, qp_of, QpForm};
 pub use corpus::{
-    formulation, is_frictionless, objective, run_solver, CorpusSolver, ProblemMeta, ResidualRecord,
-    SolveStatus, SolverRecord,
+    formulation, is_frictionless, objective, run_configured_solver, run_solver, CorpusSolver, ProblemMeta,
+    ResidualRecord, SolveStatus, SolverRecord,
 };
 pub use corpus_bench::{
-    bench_csv, bench_run, bench_table, bench_text, BenchOptions, BenchRow, BenchRun, BenchSolver, LEVELS,
-    TIME_SHIFT,
+    bench_csv, bench_run, bench_table, bench_text, runs_csv, BenchOptions, BenchRow, BenchRun, BenchSolver,
+    LEVELS, TIME_SHIFT,
 };
 pub use corpus_build::{
     build_corpus, degenerate_rows, index_csv, read_index, reference_solution, BuildOptions, BuildSummary,

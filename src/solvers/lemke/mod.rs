@@ -152,9 +152,24 @@ pub struct LemkeReport {
     /// Whether the answer is the point where a path ended on a ray, the pivot limit, a cycle
     /// or a singular basis with z0 so near zero that, z0 dropped, it meets the tolerance.
     pub near_solution: bool,
+    /// Whether the answer is that of a path from the first answer's basis with a finer LCP
+    /// tolerance, run because the first answer's residual on the problem missed the tolerance
+    /// the caller certifies against ([`LemkeSolver::certified_tolerance`]).
+    pub refined_to_level: bool,
 }
 
 impl LemkeReport {
+    /// Adds the counts of `other` (work done on the way to this report's answer).
+    fn add_work(&mut self, other: &LemkeReport) {
+        self.pivots += other.pivots;
+        self.attempts += other.attempts;
+        self.refactorizations += other.refactorizations;
+        self.operations += other.operations;
+        self.lex_solves += other.lex_solves;
+        self.restarts += other.restarts;
+        self.swaps += other.swaps;
+    }
+
     /// The counts of this report and `later`'s summed (the facts of two solves in a row).
     fn merged(self, later: LemkeReport) -> LemkeReport {
         LemkeReport {
@@ -405,14 +420,16 @@ fn residual_of_columns(cols: &Columns, q: &DVector<f64>, z: &[f64]) -> f64 {
 /// infeasible is lifted by z0 along the covering vector B·1 and its path followed until z0
 /// leaves ([`Path::restart`]). Unscaled, as M's equilibration (twenty sweeps over its entries)
 /// would cost more than the few pivots from a basis near the answer. An answer above the
-/// tolerance is accepted when `certify` accepts it. `Err` with the work done when the path ends
-/// otherwise or its answer is not accepted.
+/// tolerance is accepted when `certify` accepts it; with `certify_repairs`, `certify` also ends
+/// the repair of the path's final basis ([`repair_final_basis`]) once it accepts a point.
+/// `Err` with the work done when the path ends otherwise or its answer is not accepted.
 fn solve_from_basis(
     cols: &mut Columns,
     q: &DVector<f64>,
     options: &LemkeOptions,
     start: &[usize],
     certify: &mut Certify<'_>,
+    certify_repairs: bool,
 ) -> Result<Solution, LemkeReport> {
     let n = q.len();
     let mut report = LemkeReport { warm_started: true, ..Default::default() };
@@ -441,6 +458,7 @@ fn solve_from_basis(
     if end == PathEnd::Solved {
         let z_of = |path: &Path| -> Vec<f64> { (0..n).map(|j| path.value(n + j).max(0.0)).collect() };
         let residual_of = |z: &[f64]| residual_of_columns(cols, q, z);
+        let mut enough = |z: &[f64]| certify_repairs && certify(&DVector::from_column_slice(z));
         let repaired = repair_final_basis(
             &mut path,
             q.as_slice(),
@@ -449,6 +467,7 @@ fn solve_from_basis(
             &mut report,
             &z_of,
             &residual_of,
+            &mut enough,
         );
         let (mut z, mut residual) = (DVector::from_vec(repaired.z), repaired.residual);
         let mut within_tolerance = residual <= tolerance;
@@ -643,8 +662,16 @@ fn attempt(
     // with z0 already near zero.
     let residual_of = |z: &[f64]| natural_residual(m, q, z);
     let (z, residual, basis) = if end == PathEnd::Solved {
-        let repaired =
-            repair_final_basis(&mut path, q_scaled, path_options, tolerance, report, &z_of, &residual_of);
+        let repaired = repair_final_basis(
+            &mut path,
+            q_scaled,
+            path_options,
+            tolerance,
+            report,
+            &z_of,
+            &residual_of,
+            &mut |_| false,
+        );
         (repaired.z, repaired.residual, repaired.basis)
     } else {
         let z = z_of(&path);
@@ -701,7 +728,9 @@ struct Repaired {
 /// slightly infeasible taken as the start of a path with the covering vector B·1
 /// ([`Path::restart`]), twice at most, each held to as many pivots as that basis has active
 /// variables plus 100. `z_of` reads z (in the original units) from a path, `residual_of` its
-/// natural residual on the original LCP; the best answer is returned.
+/// natural residual on the original LCP; the repairs end once the best point is within the
+/// tolerance or `enough` accepts it; the best answer is returned.
+#[allow(clippy::too_many_arguments)]
 fn repair_final_basis(
     path: &mut Path,
     q_path: &[f64],
@@ -710,6 +739,7 @@ fn repair_final_basis(
     report: &mut LemkeReport,
     z_of: &dyn Fn(&Path) -> Vec<f64>,
     residual_of: &dyn Fn(&[f64]) -> f64,
+    enough: &mut dyn FnMut(&[f64]) -> bool,
 ) -> Repaired {
     let n = q_path.len();
     let mut z = z_of(path);
@@ -725,7 +755,7 @@ fn repair_final_basis(
             (z, residual) = (polished, polished_residual);
         }
         // Slightly negative values of the final basis: principal pivots to a clean one.
-        if residual > tolerance {
+        if residual > tolerance && !enough(&z) {
             let vars = path.basis.vars.clone();
             if let Ok(swaps) = path.clean(SWAPS) {
                 report.swaps += swaps;
@@ -744,7 +774,7 @@ fn repair_final_basis(
     // from that one's end), the best point kept.
     let mut vars = path.basis.vars.clone();
     for _ in 0..RESTARTS {
-        if residual <= tolerance {
+        if residual <= tolerance || enough(&z) {
             break;
         }
         let restart_cols = Columns { m: path.columns().m, d: covering_of_basis(path.columns(), &vars) };
