@@ -184,3 +184,33 @@ fn lemke_respects_its_operations_budget() {
         other => panic!("expected the work limit, got {other:?}"),
     }
 }
+
+/// A world's Lemke solves are held to `WorldOptions::lemke_operations`: a box on the ground
+/// with a budget too small for one pivot ends its first step with contact rows in the typed
+/// error naming that budget; the default budget answers the same step.
+#[test]
+fn a_world_holds_lemke_to_its_step_budget() {
+    use gelenk::model::Shape;
+    use gelenk::world::{SolverKind, World, WorldOptions};
+    let run = |lemke_operations: f64| -> Result<(), String> {
+        let options = WorldOptions {
+            solvers: vec![SolverKind::Lemke { facets: 4 }],
+            lemke_operations,
+            ..Default::default()
+        };
+        assert_eq!(WorldOptions::default().lemke_operations, 1e10);
+        let mut w = World::new(options);
+        w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+        let size = Vec3::repeat(0.1);
+        let model = gelenk::scenes::free_body("box", Shape::Box { size }, RigidInertia::solid_box(1.0, size));
+        let m = w.add_multibody("box", model, &gelenk::collision::MeshOptions::default()).unwrap();
+        w.multibody_mut(m).state.q[2] = 0.05;
+        for _ in 0..5 {
+            w.step().map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    };
+    run(1e10).unwrap();
+    let error = run(10.0).expect_err("a budget of 10 operations is too small for a pivot");
+    assert!(error.contains("work budget of 1.0e1 operations"), "{error}");
+}

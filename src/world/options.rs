@@ -5,7 +5,9 @@ use crate::collision::CollisionOptions;
 use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters, Speculation};
 use crate::integrators::IntegratorKind;
 use crate::math::Vec3;
-use crate::solvers::{ClarabelSolver, ConstraintSolver, LemkeSolver, NewtonSolver, PgsSolver, SolverChain};
+use crate::solvers::{
+    ClarabelSolver, ConstraintSolver, LemkeOptions, LemkeSolver, NewtonSolver, PgsSolver, SolverChain,
+};
 
 /// A solver of the chain, by kind.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -134,6 +136,13 @@ pub struct WorldOptions {
     /// scene whose contacts slide skips `newton-exact`, which cannot certify them, for this
     /// many steps at a time.
     pub skip_first_after_miss: usize,
+    /// Work budget of Lemke's method in one step ([`LemkeOptions::max_operations`]:
+    /// floating-point operations of its bases, 0: none). A step is not an offline solve: an
+    /// LCP beyond it (ten rovers built into each other, 18 000 variables) ends the step with
+    /// [`crate::error::SolverError::LemkeWorkLimit`] (or hands it to the chain's next solver)
+    /// rather than after tens of seconds. The default, 10¹⁰, is several seconds of one core and
+    /// ten times what the largest hard case's LCP takes (the 55-box pyramid at 1/60 s).
+    pub lemke_operations: f64,
     /// Residual (m/s) a solver's answer must meet before the chain accepts it.
     pub tolerance: f64,
     /// Relative softness s of the inequality and box rows (contacts, joint limits, joint
@@ -213,6 +222,7 @@ impl Default for WorldOptions {
                 SolverKind::Clarabel,
             ],
             skip_first_after_miss: 30,
+            lemke_operations: 1e10,
             tolerance: 1e-6,
             softness: 0.0,
             accept_last: true,
@@ -232,8 +242,16 @@ impl Default for WorldOptions {
 impl WorldOptions {
     /// The solver chain these options describe.
     pub fn chain(&self) -> SolverChain {
-        let mut chain =
-            SolverChain::new(self.solvers.iter().map(SolverKind::build).collect(), self.tolerance);
+        let solvers = self.solvers.iter().map(|kind| match *kind {
+            SolverKind::Lemke { facets } => {
+                let options =
+                    LemkeOptions { max_operations: self.lemke_operations, ..LemkeOptions::default() };
+                Box::new(LemkeSolver { facets, options, ..LemkeSolver::default() })
+                    as Box<dyn ConstraintSolver>
+            }
+            _ => kind.build(),
+        });
+        let mut chain = SolverChain::new(solvers.collect(), self.tolerance);
         chain.accept_last = self.accept_last;
         chain.skip_after_miss = self.skip_first_after_miss;
         chain
