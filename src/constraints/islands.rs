@@ -12,7 +12,7 @@
 
 use super::builder::index_rows_by_block;
 use super::{ConstraintProblem, ContactBlock, RowLaw};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// Marks a node, block or contact that belongs to no island.
 const NONE: usize = usize::MAX;
@@ -141,18 +141,7 @@ impl IslandPartition {
     pub fn extract(&self, problem: &ConstraintProblem, k: usize, out: &mut ConstraintProblem) {
         let rows = self.rows(k);
         let n = rows.len();
-        if out.bias.len() != n {
-            out.bias = DVector::zeros(n);
-            out.regularization = DVector::zeros(n);
-            out.target = DVector::zeros(n);
-        }
-        if out.jacobian.shape() != (n, 0) {
-            out.jacobian = DMatrix::zeros(n, 0);
-            out.minv_jt = DMatrix::zeros(0, n);
-        }
-        out.laws.clear();
-        out.origins.clear();
-        out.contacts.clear();
+        out.reset_rows(n);
         out.friction = problem.friction;
         out.kept_lambda.0.get_mut().clear();
         for (l, &i) in rows.iter().enumerate() {
@@ -293,6 +282,7 @@ fn counting_sort(
 mod tests {
     use super::*;
     use crate::solvers::{residuals, ConstraintSolver, PgsSolver};
+    use nalgebra::DVector;
 
     /// A matrix-free problem of three multibodies (one block each): rows 0–2 a contact on
     /// block 0 and block 2, row 3 a limit on block 1, rows 4–6 a contact on block 2 alone, so

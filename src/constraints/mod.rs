@@ -302,6 +302,25 @@ impl ConstraintProblem {
         self.laws.len()
     }
 
+    /// Makes this problem one of `n` rows to be filled in place (a sub-problem gathered from
+    /// another): bias, regularization and target sized n, J and M⁻¹Jᵀ sized for no columns,
+    /// laws, origins and contacts emptied; buffers of the right size are kept, so that a
+    /// sub-problem rebuilt each step does not allocate.
+    pub(crate) fn reset_rows(&mut self, n: usize) {
+        if self.bias.len() != n {
+            self.bias = DVector::zeros(n);
+            self.regularization = DVector::zeros(n);
+            self.target = DVector::zeros(n);
+        }
+        if self.jacobian.shape() != (n, 0) {
+            self.jacobian = DMatrix::zeros(n, 0);
+            self.minv_jt = DMatrix::zeros(0, n);
+        }
+        self.laws.clear();
+        self.origins.clear();
+        self.contacts.clear();
+    }
+
     /// Whether A is left unformed (see [`Self::delassus`]).
     pub fn is_matrix_free(&self) -> bool {
         self.delassus.nrows() != self.rows() && !self.sparsity.is_empty()

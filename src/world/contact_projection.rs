@@ -582,22 +582,10 @@ impl ContactProjector {
     /// from 0: matrix-free, W's runs copied.
     fn gather(&mut self, problem: &ConstraintProblem, partition: &IslandPartition) {
         let (sp, sub) = (&problem.sparsity, &mut self.sub);
-        let n = self.normals.len();
-        if sub.bias.len() != n {
-            sub.bias = DVector::zeros(n);
-            sub.regularization = DVector::zeros(n);
-            sub.target = DVector::zeros(n);
-        }
-        if sub.jacobian.shape() != (n, 0) {
-            sub.jacobian = DMatrix::zeros(n, 0);
-            sub.minv_jt = DMatrix::zeros(0, n);
-        }
+        sub.reset_rows(self.normals.len());
         if sub.delassus.nrows() != 0 {
             sub.delassus = DMatrix::zeros(0, 0);
         }
-        sub.laws.clear();
-        sub.origins.clear();
-        sub.contacts.clear();
         let local = &mut sub.sparsity;
         local.blocks.clear();
         local.nv = 0;
