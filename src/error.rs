@@ -350,6 +350,16 @@ pub enum SolverError {
         /// The budget (floating-point operations, estimated from the basis's sizes).
         budget: f64,
     },
+    /// The LCP's matrix would store more entries than
+    /// [`crate::solvers::LemkeOptions::max_matrix_entries`] allows (a problem whose contacts
+    /// all share bodies makes M nearly dense: memory grows with the square of its size).
+    #[error(
+        "Lemke: the LCP's matrix would store more than {limit} entries (LemkeOptions::max_matrix_entries)"
+    )]
+    LemkeMatrixTooLarge {
+        /// The limit (stored entries).
+        limit: usize,
+    },
     /// Lemke's method met a basis whose LU is singular to working precision.
     #[error("Lemke: singular basis after {pivots} pivots (smallest/largest LU pivot {ratio:.1e})")]
     LemkeSingularBasis {

@@ -157,13 +157,20 @@ fn pgs_refuses_to_return_nan_impulses_on_a_subnormal_diagonal() {
 
 /// Ten floating rovers stacked through each other on Lemke alone (a finding of the scene
 /// fuzzer, `tests/fuzz_corpus/scene/found-overlapping-huskies-lemke.toml`): an LCP of about
-/// 6 000 variables whose every path ends on a ray. The paths after the first stop at their share
-/// of the work (`LemkeOptions::fallback_share`), and the step is the typed error that says so.
+/// 6 000 variables whose every path ends on a ray and whose M is nearly dense. A world's step
+/// refuses to form that M (`lemke_matrix_entries`, 2·10⁷ by default); with no such limit, the
+/// paths after the first stop at their share of the work (`LemkeOptions::fallback_share`). Each
+/// ends the step with the typed error that says so.
 #[test]
-fn lemke_on_an_lcp_no_path_solves_stops_at_its_work_budget() {
+fn lemke_on_an_lcp_no_path_solves_stops_at_its_bounds() {
     let path = manifest("tests/fuzz_corpus/scene/found-overlapping-huskies-lemke.toml");
     let text = std::fs::read_to_string(path).unwrap();
     let mut scene = scene::load_str(&text, manifest("models")).unwrap();
+    let error = scene.world.step().expect_err("M is larger than the world's limit").to_string();
+    assert!(error.contains("more than 20000000 entries"), "{error}");
+    let unbounded = text.replace("[world]\n", "[world]\nlemke_matrix_entries = 0\n");
+    assert_ne!(unbounded, text);
+    let mut scene = scene::load_str(&unbounded, manifest("models")).unwrap();
     let error = scene.world.step().expect_err("no path solves this LCP").to_string();
     assert!(error.contains("work budget of 4.0e9 operations"), "{error}");
 }
@@ -185,32 +192,48 @@ fn lemke_respects_its_operations_budget() {
     }
 }
 
+/// A box on the ground for five steps, Lemke alone solving its contacts with `options`.
+fn box_on_ground_with_lemke(options: gelenk::world::WorldOptions) -> Result<(), String> {
+    use gelenk::model::Shape;
+    use gelenk::world::{SolverKind, World, WorldOptions};
+    let options = WorldOptions { solvers: vec![SolverKind::Lemke { facets: 4 }], ..options };
+    let mut w = World::new(options);
+    w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
+    let size = Vec3::repeat(0.1);
+    let model = gelenk::scenes::free_body("box", Shape::Box { size }, RigidInertia::solid_box(1.0, size));
+    let m = w.add_multibody("box", model, &gelenk::collision::MeshOptions::default()).unwrap();
+    w.multibody_mut(m).state.q[2] = 0.05;
+    for _ in 0..5 {
+        w.step().map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
 /// A world's Lemke solves are held to `WorldOptions::lemke_operations`: a box on the ground
 /// with a budget too small for one pivot ends its first step with contact rows in the typed
 /// error naming that budget; the default budget answers the same step.
 #[test]
 fn a_world_holds_lemke_to_its_step_budget() {
-    use gelenk::model::Shape;
-    use gelenk::world::{SolverKind, World, WorldOptions};
-    let run = |lemke_operations: f64| -> Result<(), String> {
-        let options = WorldOptions {
-            solvers: vec![SolverKind::Lemke { facets: 4 }],
-            lemke_operations,
-            ..Default::default()
-        };
-        assert_eq!(WorldOptions::default().lemke_operations, 1e10);
-        let mut w = World::new(options);
-        w.add_static("ground", &Shape::HalfSpace { normal: Vec3::z() }, Transform::identity(), 0).unwrap();
-        let size = Vec3::repeat(0.1);
-        let model = gelenk::scenes::free_body("box", Shape::Box { size }, RigidInertia::solid_box(1.0, size));
-        let m = w.add_multibody("box", model, &gelenk::collision::MeshOptions::default()).unwrap();
-        w.multibody_mut(m).state.q[2] = 0.05;
-        for _ in 0..5 {
-            w.step().map_err(|e| e.to_string())?;
-        }
-        Ok(())
-    };
-    run(1e10).unwrap();
-    let error = run(10.0).expect_err("a budget of 10 operations is too small for a pivot");
+    use gelenk::world::WorldOptions;
+    assert_eq!(WorldOptions::default().lemke_operations, 1e10);
+    box_on_ground_with_lemke(WorldOptions::default()).unwrap();
+    let tight = WorldOptions { lemke_operations: 10.0, ..Default::default() };
+    let error =
+        box_on_ground_with_lemke(tight).expect_err("a budget of 10 operations is too small for a pivot");
     assert!(error.contains("work budget of 1.0e1 operations"), "{error}");
+}
+
+/// A world's Lemke solves are held to `WorldOptions::lemke_matrix_entries`: the box's four
+/// contacts on a 4-facet pyramid make an LCP of 24 variables whose M stores more than 40
+/// entries, so a limit of 40 ends the first contact step with the typed error naming it (M is
+/// not formed); the default limit answers the same steps.
+#[test]
+fn a_world_holds_lemke_to_its_matrix_limit() {
+    use gelenk::world::WorldOptions;
+    assert_eq!(WorldOptions::default().lemke_matrix_entries, 20_000_000);
+    box_on_ground_with_lemke(WorldOptions::default()).unwrap();
+    let tight = WorldOptions { lemke_matrix_entries: 40, ..Default::default() };
+    let error =
+        box_on_ground_with_lemke(tight).expect_err("M of a box's contacts stores more than 40 entries");
+    assert!(error.contains("more than 40 entries"), "{error}");
 }

@@ -143,6 +143,14 @@ pub struct WorldOptions {
     /// rather than after tens of seconds. The default, 10¹⁰, is several seconds of one core and
     /// ten times what the largest hard case's LCP takes (the 55-box pyramid at 1/60 s).
     pub lemke_operations: f64,
+    /// Most entries Lemke's sparse matrices may store in one step
+    /// ([`LemkeOptions::max_matrix_entries`], 16 bytes each; 0: none). The default, 2·10⁷
+    /// (320 MB for M, as much for its equilibrated copy), is five times what the largest
+    /// problem of the corpus needs (a heap of ragdolls: 6 500 variables, 4.4·10⁶ entries); ten
+    /// rovers at one place (14 500 variables, M nearly dense: 2·10⁸ entries, 5.8 GB) end the
+    /// step with [`crate::error::SolverError::LemkeMatrixTooLarge`] (or hand it to the chain's
+    /// next solver) before M is formed.
+    pub lemke_matrix_entries: usize,
     /// Residual (m/s) a solver's answer must meet before the chain accepts it.
     pub tolerance: f64,
     /// Relative softness s of the inequality and box rows (contacts, joint limits, joint
@@ -223,6 +231,7 @@ impl Default for WorldOptions {
             ],
             skip_first_after_miss: 30,
             lemke_operations: 1e10,
+            lemke_matrix_entries: 20_000_000,
             tolerance: 1e-6,
             softness: 0.0,
             accept_last: true,
@@ -244,8 +253,11 @@ impl WorldOptions {
     pub fn chain(&self) -> SolverChain {
         let solvers = self.solvers.iter().map(|kind| match *kind {
             SolverKind::Lemke { facets } => {
-                let options =
-                    LemkeOptions { max_operations: self.lemke_operations, ..LemkeOptions::default() };
+                let options = LemkeOptions {
+                    max_operations: self.lemke_operations,
+                    max_matrix_entries: self.lemke_matrix_entries,
+                    ..LemkeOptions::default()
+                };
                 Box::new(LemkeSolver { facets, options, ..LemkeSolver::default() })
                     as Box<dyn ConstraintSolver>
             }

@@ -86,6 +86,8 @@ pub(super) fn build(
         tolerance: w.tolerance.map_or(defaults.tolerance, |x| x.0),
         softness: w.softness.map_or(defaults.softness, |x| x.0),
         accept_last: w.accept_last.unwrap_or(defaults.accept_last),
+        lemke_operations: w.lemke_operations.map_or(defaults.lemke_operations, |x| x.0),
+        lemke_matrix_entries: w.lemke_matrix_entries.unwrap_or(defaults.lemke_matrix_entries),
         contact: doc.contact.apply(ContactParameters::default()),
         ..defaults
     };

@@ -84,6 +84,8 @@ pub(super) struct WorldSection {
     pub(super) tolerance: Option<Positive>,
     pub(super) softness: Option<NonNegative>,
     pub(super) accept_last: Option<bool>,
+    pub(super) lemke_operations: Option<NonNegative>,
+    pub(super) lemke_matrix_entries: Option<usize>,
     pub(super) friction: Option<FrictionName>,
     pub(super) margin: Option<NonNegative>,
     pub(super) speculative_within: Option<NonNegative>,

@@ -8,15 +8,20 @@
 use super::columns::Csc;
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
 
-/// A + R (the problem's regularization on the diagonal) by sparse columns.
-pub(super) fn delassus_plus_r(problem: &ConstraintProblem) -> Csc {
+/// A + R (the problem's regularization on the diagonal) by sparse columns; `Err(limit)` as soon
+/// as it would store more than `limit` entries (0: no limit), before allocating for them.
+pub(super) fn delassus_plus_r(problem: &ConstraintProblem, limit: usize) -> Result<Csc, usize> {
     let n = problem.rows();
+    let limit = if limit == 0 { usize::MAX } else { limit };
     if !problem.is_matrix_free() {
+        if n.saturating_mul(n) > limit {
+            return Err(limit);
+        }
         let mut a = problem.delassus.clone();
         for i in 0..n {
             a[(i, i)] += problem.regularization[i];
         }
-        return Csc::from_dense(&a);
+        return Ok(Csc::from_dense(&a));
     }
     let sp = &problem.sparsity;
     // Wᵀ: for each velocity column, the rows whose runs cover it and their entries.
@@ -75,8 +80,11 @@ pub(super) fn delassus_plus_r(problem: &ConstraintProblem) -> Csc {
         }
         a.end_column();
         touched.clear();
+        if a.nonzeros() > limit {
+            return Err(limit);
+        }
     }
-    a
+    Ok(a)
 }
 
 /// Everything the LCP's M is formed from (the rows' laws, the contacts, the friction model and

@@ -13,6 +13,7 @@ use super::columns::Csc;
 use super::delassus::delassus_plus_r;
 use super::lazy::ColumnCache;
 use crate::constraints::{ConstraintProblem, FrictionModel, RowLaw};
+use crate::solvers::SolverError;
 use nalgebra::{DMatrix, DVector};
 
 /// An LCP `w = M z + q`, with the map back to impulses `λ = C z + c0`.
@@ -294,13 +295,21 @@ fn variables(problem: &ConstraintProblem, facets: usize) -> Variables {
 /// in dense scratch over the rows they touch, and each of its columns of M is the combination
 /// Σ_r C_rj g_r plus its couplings E_j: a contact's facets cost one pass over their shared
 /// pattern each instead of a product with A each.
-pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> SparseLcp {
+///
+/// Fails with [`SolverError::LemkeMatrixTooLarge`] when A + R would store more than
+/// `max_entries` entries (0: no limit).
+pub(super) fn sparse_lcp_of(
+    problem: &ConstraintProblem,
+    facets: usize,
+    max_entries: usize,
+) -> Result<SparseLcp, SolverError> {
     let Variables { columns, extra, e_entries, c0 } = variables(problem, facets);
     let n = problem.rows();
     let m = columns.len();
     // A + R by columns (symmetric: column r is row r), and the LCP variables each impulse row
     // feeds (Cᵀ by columns).
-    let a = delassus_plus_r(problem);
+    let a =
+        delassus_plus_r(problem, max_entries).map_err(|limit| SolverError::LemkeMatrixTooLarge { limit })?;
     let q = q_of(&a, &columns, &c0, &e_entries, problem);
     let mut vars_of_row: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
     for (j, col) in columns.iter().enumerate() {
@@ -312,7 +321,7 @@ pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> Spars
     for &(i, j, x) in &extra {
         extra_of_column[j].push((i, x));
     }
-    SparseLcp {
+    Ok(SparseLcp {
         m: None,
         q,
         c: columns,
@@ -322,7 +331,7 @@ pub(super) fn sparse_lcp_of(problem: &ConstraintProblem, facets: usize) -> Spars
         vars_of_row,
         extra_of_column,
         cache: Default::default(),
-    }
+    })
 }
 
 impl SparseLcp {
@@ -339,16 +348,20 @@ impl SparseLcp {
         super::polish::blocks_of_pairs(self.q.len(), pairs)
     }
 
-    /// M in full, formed on the first call.
-    pub fn form_m(&mut self) -> &Csc {
+    /// M in full, formed on the first call; [`SolverError::LemkeMatrixTooLarge`] as soon as it
+    /// would store more than `max_entries` entries (0: no limit).
+    pub fn form_m(&mut self, max_entries: usize) -> Result<&Csc, SolverError> {
         if self.m.is_none() {
-            self.m = Some(self.assemble_m());
+            let limit = if max_entries == 0 { usize::MAX } else { max_entries };
+            let m = self.assemble_m(limit).ok_or(SolverError::LemkeMatrixTooLarge { limit: max_entries })?;
+            self.m = Some(m);
         }
-        self.m.as_ref().expect("formed above")
+        Ok(self.m.as_ref().expect("formed above"))
     }
 
-    /// M by groups of columns sharing their impulse rows (see [`sparse_lcp_of`]).
-    fn assemble_m(&self) -> Csc {
+    /// M by groups of columns sharing their impulse rows (see [`sparse_lcp_of`]); None once it
+    /// holds more than `limit` entries.
+    fn assemble_m(&self, limit: usize) -> Option<Csc> {
         let (columns, a, vars_of_row, extra_of_column) =
             (&self.c, &self.a, &self.vars_of_row, &self.extra_of_column);
         let m = columns.len();
@@ -362,7 +375,7 @@ impl SparseLcp {
         let mut touched = Vec::new();
         let mut seen = vec![false; m];
         let (mut col, mut col_rows) = (vec![0.0; m], Vec::new());
-        let mut mm = Csc::with_capacity(m, a.nonzeros() * 8);
+        let mut mm = Csc::with_capacity(m, (a.nonzeros() * 8).min(limit));
         let mut j = 0;
         while j < m {
             let mut end = j + 1;
@@ -419,6 +432,9 @@ impl SparseLcp {
                 mm.end_column();
                 col_rows.clear();
             }
+            if mm.nonzeros() > limit {
+                return None;
+            }
             for &i in &touched {
                 g[0][i] = 0.0;
                 g[1][i] = 0.0;
@@ -427,7 +443,7 @@ impl SparseLcp {
             touched.clear();
             j = end;
         }
-        mm
+        Some(mm)
     }
 }
 

@@ -101,6 +101,12 @@ pub struct LemkeOptions {
     /// variables, every path ending on a ray) costs eight full paths, each pivot O(k²) in a
     /// dense basis.
     pub fallback_share: f64,
+    /// Most entries the LCP's sparse matrices (A + R, then M) may store (0: no limit). M, its
+    /// equilibrated copy and A + R take 16 bytes an entry, and M fills in where contacts share
+    /// bodies: ten rovers built into one place give an LCP of 14 500 variables whose M is
+    /// nearly dense (5.8 GB). Beyond the limit the solve ends with
+    /// [`SolverError::LemkeMatrixTooLarge`] before allocating for the rest.
+    pub max_matrix_entries: usize,
 }
 
 /// The least first-path work [`LemkeOptions::fallback_share`] is a multiple of (operations).
@@ -116,6 +122,7 @@ impl Default for LemkeOptions {
             degeneracy_tolerance: 2.5e-10,
             max_operations: 0.0,
             fallback_share: 4.0,
+            max_matrix_entries: 0,
         }
     }
 }

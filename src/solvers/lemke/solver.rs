@@ -139,7 +139,7 @@ impl ConstraintSolver for LemkeSolver {
             memory.reused_matrices += 1;
             memory.lcp.as_mut().expect("kept with its key").update_q(problem);
         } else {
-            let lcp = sparse_lcp_of(problem, facets);
+            let lcp = sparse_lcp_of(problem, facets, self.options.max_matrix_entries)?;
             memory.equilibrated = None;
             memory.lcp = Some(lcp);
             if memory.enabled {
@@ -201,11 +201,13 @@ impl ConstraintSolver for LemkeSolver {
         let outcome = match warm {
             Ok(solution) => Ok(solution),
             Err(report) => {
-                lcp.form_m();
+                let formed = lcp.form_m(self.options.max_matrix_entries).map(|_| ());
                 let lcp = &*lcp;
-                let m = lcp.m.as_ref().expect("formed above");
-                solve_sparse(m, &lcp.q, &self.options, &mut memory.equilibrated, report, &mut |z| {
-                    certify(lcp, z)
+                formed.and_then(|()| {
+                    let m = lcp.m.as_ref().expect("formed above");
+                    solve_sparse(m, &lcp.q, &self.options, &mut memory.equilibrated, report, &mut |z| {
+                        certify(lcp, z)
+                    })
                 })
             }
         };
