@@ -4,8 +4,8 @@ MuJoCo in the same run, at dt = 2 ms and 1/60 s. Writes the plot docs/crowd_scal
 table it is drawn from into docs/performance.md (between its `crowd-scaling:begin` and
 `crowd-scaling:end` markers; nothing else changes).
 
-gelenk runs the settings of models/ragdoll_crowd.toml (`--solver newton,clarabel --softness
-0.1`, sleeping off: every step does the full work); MuJoCo its defaults (Newton, soft
+gelenk runs the chain of models/ragdoll_crowd.toml with the compliance of MuJoCo's default
+impedance (`--solver newton,clarabel --softness 0.1`, sleeping off: every step does the full work); MuJoCo its defaults (Newton, soft
 constraints, `implicitfast`), elliptic cones in both. Each run starts at the drop and lasts
 `--seconds` simulated seconds, so the heap forms during it.
 

@@ -31,9 +31,10 @@ ROOT = os.path.join(HERE, "..")
 DOC = os.path.join(ROOT, "docs", "performance.md")
 BEGIN, END = "<!-- crowds:begin -->", "<!-- crowds:end -->"
 DTS = [("1/60", 1 / 60), ("1/240", 1 / 240), ("1/500", 1 / 500)]
-# The chain and softness the ragdoll crowd uses (models/ragdoll_crowd.toml), for the MJCF piles
-# (which carry no gelenk settings: the world's default rows are hard, MuJoCo's soft) and for
-# ragdoll_pile, whose own chain (pgs100, hard rows) is kept for its 2 ms step.
+# The chain and softness of the MJCF piles (which carry no gelenk settings: the world's default
+# rows are hard, MuJoCo's soft): the ragdoll crowd's chain, with the softness of MuJoCo's default
+# impedance (d = 0.9 gives R = (1 - d) / d · A = 0.11 A), so that both engines solve rows of
+# about the same compliance.
 PILE_SETTINGS = ["--solver", "newton,clarabel", "--softness", "0.1"]
 # Scenes, with the flags they are run with.
 SCENES = [("ragdoll_pile", []), ("pile", []), ("ragdoll_crowd", [])]
@@ -146,7 +147,7 @@ def main():
         "",
         "Piles of N ragdolls from `python3 benches/ragdoll_mjcf.py --count N --dt DT --cone elliptic` (the 2 × 2 columns "
         "of models/ragdoll_crowd.toml), stepped from the drop by `gelenk bench world FILE.xml` "
-        f"(sleeping off, ragdoll_crowd's settings `{' '.join(PILE_SETTINGS)}`) and by MuJoCo's "
+        f"(sleeping off, ragdoll_crowd's chain with MuJoCo's default compliance: `{' '.join(PILE_SETTINGS)}`) and by MuJoCo's "
         "`mj_step` (its default Newton solver and soft constraints, `implicitfast`); elliptic friction "
         "cones in both (Newton's method solves cones).",
         "",
