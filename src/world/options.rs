@@ -125,11 +125,13 @@ pub struct WorldOptions {
     /// Friction cone or pyramid.
     pub friction: FrictionModel,
     /// Solver chain, first choice first, run on each island of the step's problem
-    /// ([`super::World::set_threads`]). The default, PGS (100 sweeps) → Newton → clarabel: PGS
-    /// solves the exact Coulomb problem (a box slides on its plane), Newton's method and
-    /// clarabel its convex relaxation (a sliding contact separates at μ‖v_t‖). Piles of
-    /// articulated bodies are answered by Newton's method on softened rows (`newton`,
-    /// `clarabel` with [`Self::softness`] 0.1: models/ragdoll_crowd.toml).
+    /// ([`super::World::set_threads`]). The default, `newton-exact` → PGS (100 sweeps) →
+    /// Newton → clarabel: `newton-exact` answers sticking and separating contacts of the exact
+    /// Coulomb problem in a few iterations, PGS solves it where contacts slide (a box slides on
+    /// its plane), Newton's method and clarabel its convex relaxation (a sliding contact
+    /// separates at μ‖v_t‖). Piles of articulated bodies are answered by Newton's method on
+    /// softened rows (`newton`, `clarabel` with [`Self::softness`] 0.02:
+    /// models/ragdoll_crowd.toml).
     pub solvers: Vec<SolverKind>,
     /// Steps for which an island's chain passes over its first solver after that solver
     /// missed ([`SolverChain::skip_after_miss`]; 0: always tried). With the default chain, a
