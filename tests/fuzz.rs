@@ -8,7 +8,8 @@
 //! reader (HDF5, the `fclib` feature) has its own targets in `tests/fuzz_fclib.rs`.
 //!
 //! CI runs each target for `GELENK_FUZZ_SECONDS` (default 8 s); an hour per target:
-//! `GELENK_FUZZ_SECONDS=3600 GELENK_FUZZ_SEED=random cargo test --profile ci --test fuzz -- --test-threads 1`.
+//! `GELENK_FUZZ_SECONDS=3600 GELENK_FUZZ_SEED=random cargo test --profile ci --test fuzz -- --test-threads 1 --nocapture`
+//! (`--nocapture` shows each target's summary: cases, seed, longest case).
 
 mod fuzz_support;
 
