@@ -699,3 +699,25 @@ fn an_answer_within_the_lcp_tolerance_is_refined_to_the_level_it_is_certified_ag
         eprintln!("{name}: {r:.1e} m/s, {} pivots", report.pivots);
     }
 }
+
+/// `LemkeOptions::max_matrix_entries` bounds what a solve stores: an exported stack20 step (its
+/// A given dense, as a problem file gives it) is refused with the typed error at a limit below
+/// its A + R's entries, and solved at the default (no limit) and at a limit it fits in.
+#[test]
+fn the_matrix_limit_refuses_a_problem_before_forming_its_lcp() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/lemke_stack20_dt60_problem.json");
+    let problem =
+        gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    assert!(!problem.is_matrix_free(), "the file gives A");
+    let solve = |max_matrix_entries: usize| {
+        let options = LemkeOptions { max_matrix_entries, ..Default::default() };
+        LemkeSolver { options, ..Default::default() }.solve(&problem, &mut DVector::zeros(problem.rows()))
+    };
+    match solve(problem.rows()) {
+        Err(SolverError::LemkeMatrixTooLarge { limit }) => assert_eq!(limit, problem.rows()),
+        other => panic!("expected the matrix limit, got {other:?}"),
+    }
+    solve(0).unwrap();
+    solve(100 * problem.rows() * problem.rows()).unwrap();
+}

@@ -14,14 +14,13 @@ pub(super) fn delassus_plus_r(problem: &ConstraintProblem, limit: usize) -> Resu
     let n = problem.rows();
     let limit = if limit == 0 { usize::MAX } else { limit };
     if !problem.is_matrix_free() {
-        if n.saturating_mul(n) > limit {
-            return Err(limit);
-        }
+        // The dense A is in memory already; its sparse copy is checked once formed.
         let mut a = problem.delassus.clone();
         for i in 0..n {
             a[(i, i)] += problem.regularization[i];
         }
-        return Ok(Csc::from_dense(&a));
+        let a = Csc::from_dense(&a);
+        return if a.nonzeros() > limit { Err(limit) } else { Ok(a) };
     }
     let sp = &problem.sparsity;
     // Wᵀ: for each velocity column, the rows whose runs cover it and their entries.
