@@ -38,6 +38,12 @@ use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
+/// An exported problem of `tests/data/` (written by `io::problem::problem_to_json`).
+fn exported_problem(name: &str) -> ConstraintProblem {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
+    gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap()
+}
+
 /// max |min(z_i, w_i)| with w = M z + q, and min(z).
 fn natural_residual(m: &DMatrix<f64>, q: &DVector<f64>, z: &DVector<f64>) -> (f64, f64) {
     let w = m * z + q;
@@ -421,10 +427,7 @@ fn a_twenty_box_stack_lcp_whose_paths_end_on_infeasible_bases_is_solved() {
     // vectors end on complementary bases whose values are some 1e-9 below zero after hundreds
     // of degenerate pivots, which polishing cannot repair; a path restarted from such a basis
     // lifts them and ends on a solution.
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/lemke_stack20_dt60_problem.json");
-    let problem =
-        gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    let problem = exported_problem("lemke_stack20_dt60_problem.json");
     assert_eq!(problem.contacts.len(), 80);
     let (_, r, pivots) = lemke_certified(&problem);
     assert!(r <= 1e-8, "certified residual {r:e} m/s after {pivots} pivots");
@@ -639,10 +642,7 @@ fn an_answer_the_chain_certifies_ends_the_solve() {
     // (4e-10): alone, Lemke tries further covering vectors; told the tolerance its chain
     // certifies against (1e-8 m/s), it accepts the first path's answer, whose problem residual
     // is within it, and says so.
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/lemke_stack20_dt60_problem.json");
-    let problem =
-        gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    let problem = exported_problem("lemke_stack20_dt60_problem.json");
     let options = LemkeOptions { tolerance: 1e-11, ..Default::default() };
     let mut alone = LemkeSolver { options, ..Default::default() };
     alone.solve(&problem, &mut DVector::zeros(problem.rows())).unwrap();
@@ -677,9 +677,7 @@ fn an_answer_within_the_lcp_tolerance_is_refined_to_the_level_it_is_certified_ag
     // friction facets a few 1e-9 below zero, which the dissipation gap counts per unit of a
     // small friction bound. Told 1e-9 m/s, Lemke refines the answer by a path from its basis.
     for name in ["lemke_buggy_terrain_s0089_problem.json", "lemke_humanoid_pile_s0399_problem.json"] {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
-        let problem =
-            gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+        let problem = exported_problem(name);
         let certifying = CorpusSolver::Lemke.certifying_problem(&problem);
         let q = lcp_of(&problem, 8).q;
         let lcp_tolerance = LemkeOptions::default().tolerance * q.amax().max(1.0);
@@ -705,10 +703,7 @@ fn an_answer_within_the_lcp_tolerance_is_refined_to_the_level_it_is_certified_ag
 /// its A + R's entries, and solved at the default (no limit) and at a limit it fits in.
 #[test]
 fn the_matrix_limit_refuses_a_problem_before_forming_its_lcp() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/lemke_stack20_dt60_problem.json");
-    let problem =
-        gelenk::io::problem::problem_from_json(&std::fs::read_to_string(&path).unwrap(), &path).unwrap();
+    let problem = exported_problem("lemke_stack20_dt60_problem.json");
     assert!(!problem.is_matrix_free(), "the file gives A");
     let solve = |max_matrix_entries: usize| {
         let options = LemkeOptions { max_matrix_entries, ..Default::default() };
