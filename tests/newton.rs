@@ -239,3 +239,70 @@ fn a_soft_stack_carries_its_load_without_sinking() {
     assert!(top_start - top_lowest < 0.02 && top_highest - top_start < 0.02, "the stack does not stand");
     assert!(deepest_late < 1e-3, "the stack sinks under its load: {deepest_late:.2e} m deep");
 }
+
+/// `follow_elastic_impulses` moves each softened row's centre to `(1 − β) λ + β λ̄`, and to 0
+/// for a unilateral row at 0 and for the friction rows of a contact whose normal is at 0.
+#[test]
+fn the_centre_of_the_softening_follows_the_elastic_impulses() {
+    let a = DMatrix::from_diagonal(&DVector::from_vec(vec![1.0; 8]));
+    let laws = vec![
+        RowLaw::Unilateral,
+        RowLaw::Friction { contact: 0 },
+        RowLaw::Friction { contact: 0 },
+        RowLaw::Unilateral,
+        RowLaw::Friction { contact: 1 },
+        RowLaw::Friction { contact: 1 },
+        RowLaw::Bounded { lo: -1.0, hi: 1.0 },
+        RowLaw::Unilateral,
+    ];
+    let contacts =
+        vec![ContactBlock { normal: 0, mu: 0.5, mu2: 0.5 }, ContactBlock { normal: 3, mu: 0.5, mu2: 0.5 }];
+    let problem = ConstraintProblem::from_parts(a, DVector::zeros(8), laws, contacts, FrictionModel::Cone);
+    let lambda = DVector::from_vec(vec![2.0, 0.4, -0.2, 0.0, 0.0, 0.0, -0.5, 0.0]);
+    let mut centre = DVector::from_vec(vec![1.0, 0.2, 0.2, 3.0, 0.5, -0.5, 0.5, 1.0]);
+    problem.follow_elastic_impulses(0.25, &lambda, &mut centre);
+    let expected = [1.75, 0.35, -0.1, 0.0, 0.0, 0.0, -0.25, 0.0];
+    for (i, e) in expected.iter().enumerate() {
+        assert!((centre[i] - e).abs() < 1e-15, "row {i}: {} vs {e}", centre[i]);
+    }
+    // β = 0: the centre is the impulse (undamped springs); β = 1: it stays (dampers alone).
+    let mut undamped = centre.clone();
+    problem.follow_elastic_impulses(0.0, &lambda, &mut undamped);
+    assert_eq!(undamped, lambda);
+    let mut dampers = DVector::from_vec(vec![0.0; 8]);
+    problem.follow_elastic_impulses(1.0, &lambda, &mut dampers);
+    assert_eq!(dampers, DVector::from_vec(vec![0.0; 8]));
+}
+
+/// MuJoCo's humanoid (benches/peers/humanoid_fall.xml) dropped at 2 ms on rows as soft as
+/// MuJoCo's default impedance ((1 − d)/d with d = 0.9): with the rows' dampers
+/// (`softness_damping`, 0.5 by default) it comes to rest and falls asleep within 5 s, its
+/// deepest penetration under 1 mm. Undamped (β = 0), its slowest modes on the soft rows keep it
+/// rocking: it is still awake after 5 s.
+#[test]
+fn a_humanoid_on_soft_rows_comes_to_rest() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/peers/humanoid_fall.xml");
+    let run = |damping: f64| {
+        let scene = gelenk::io::mjcf::load_file(std::path::Path::new(path)).unwrap();
+        let mut options = scene.world_options();
+        options.softness = 0.11;
+        options.softness_damping = damping;
+        let mut world = scene.into_world(options).unwrap();
+        let (mut asleep_at, mut deepest) = (None, 0.0f64);
+        let count = world.multibody_count();
+        for step in 0..2500 {
+            let stats = world.step().unwrap_or_else(|e| panic!("step {step}: {e}"));
+            deepest = deepest.max(stats.max_penetration);
+            if stats.asleep == count && asleep_at.is_none() {
+                asleep_at = Some(stats.time);
+            }
+        }
+        (asleep_at, deepest)
+    };
+    let (damped, deepest) = run(gelenk::world::WorldOptions::default().softness_damping);
+    let (undamped, _) = run(0.0);
+    println!("asleep at {damped:?} s (damped), {undamped:?} s (undamped); deepest {deepest:.2e} m");
+    assert!(damped.is_some_and(|t| t < 3.0), "the damped humanoid is still awake: {damped:?}");
+    assert!(deepest < 1e-3, "{deepest:.2e} m deep");
+    assert_eq!(undamped, None, "the undamped humanoid came to rest");
+}

@@ -502,14 +502,36 @@ impl ConstraintProblem {
     /// Centres the softening of [`Self::soften`] on the impulses `centre` (one per row, N·s):
     /// `b_i −= s A_ii · centre_i`, so that the rows are `(A + R) λ + b − S λ̄` with `S` the
     /// added compliance: the compliance then acts on the change of the impulse from `centre`
-    /// (the warm start, last step's impulses) and not on the impulse itself, and a row that
-    /// carries the same impulse step after step (a body resting under a heap) holds it as a
-    /// hard row would, without sinking by `S λ h / erp` (the proximal point method across
-    /// steps). Rows without a softening are unchanged.
+    /// (the elastic part of last step's impulses, [`Self::follow_elastic_impulses`]) and not on
+    /// the impulse itself, and a row that carries the same impulse step after step (a body
+    /// resting under a heap) holds it as a hard row would, without sinking by `S λ h / erp`.
+    /// Rows without a softening are unchanged.
     pub fn center_softening(&mut self, relative: f64, centre: &DVector<f64>) {
         for i in 0..self.rows() {
             let s = self.softening(i, relative);
             self.bias[i] -= s * centre[i];
+        }
+    }
+
+    /// Moves the centres of the softening (see [`Self::center_softening`]) to the elastic part
+    /// of the impulses `lambda` just solved for: `centre ← (1 − β) λ + β centre` with
+    /// `β = damping`, and 0 for a contact whose normal impulse is 0 or a unilateral row at 0
+    /// (a spring that has let go holds no load).
+    ///
+    /// Each softened row is then a spring and a damper side by side (Kelvin–Voigt) over the
+    /// step: of its compliance `S`, the share `β` is the damper's (`S = 1/(h²K + hB)`,
+    /// `β = hB·S`) and the rest the spring's, whose impulse is the centre. With `β = 0` the
+    /// rows are undamped springs: a body lying on several soft rows, whose slowest modes the
+    /// step's implicit solve barely damps, keeps rocking on them and never comes to rest. With
+    /// `β = 1` they are dampers alone (the softening is not centred and a loaded row sinks).
+    pub fn follow_elastic_impulses(&self, damping: f64, lambda: &DVector<f64>, centre: &mut DVector<f64>) {
+        for i in 0..self.rows() {
+            let released = match self.laws[i] {
+                RowLaw::Unilateral => lambda[i] == 0.0,
+                RowLaw::Friction { contact } => lambda[self.contacts[contact].normal] == 0.0,
+                RowLaw::Bilateral | RowLaw::Bounded { .. } => false,
+            };
+            centre[i] = if released { 0.0 } else { (1.0 - damping) * lambda[i] + damping * centre[i] };
         }
     }
 

@@ -4,7 +4,7 @@
 //!
 //! The velocity-level step makes each contact's normal velocity close at most the gap the
 //! contact has, but the positions it reaches are only as good as a first-order answer: soft
-//! rows ([`WorldOptions::softness`], centred on the warm start) yield while their load changes,
+//! rows ([`WorldOptions::softness`], centred on their springs' impulses) yield while their load changes,
 //! the step's straight-line motion of a turning limb carries its end into the ground, a pair
 //! whose closest features change within the step meets where its manifold has no point, and
 //! Baumgarte feedback (the contacts' `erp`) removes a penetration only a fraction per step,

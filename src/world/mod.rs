@@ -66,7 +66,7 @@ use loops::Loops;
 use materials::Materials;
 use nalgebra::DVector;
 use stages::rows::{RowAssembly, RowSources};
-use stages::solve::Solve;
+use stages::solve::{Softening, Solve};
 use stages::speculation::SpeculationState;
 use stats::{Phase, PhaseTimer};
 use thiserror::Error;
@@ -755,8 +755,8 @@ impl World {
     /// [`Solve::solve`]).
     fn solve_problem(&mut self) -> Result<ChainReport, StepError> {
         let generation = self.rows.kept_contact_rows().map(|(generation, _)| generation);
-        let softness = self.options.softness;
-        Ok(self.solve.solve(&self.contacts, generation, softness, &self.bodies, &mut self.dofs)?)
+        let softening = Softening { relative: self.options.softness, damping: self.options.softness_damping };
+        Ok(self.solve.solve(&self.contacts, generation, softening, &self.bodies, &mut self.dofs)?)
     }
 
     /// Moves every collider to the current states (poses, Jacobians), as a step's first phase

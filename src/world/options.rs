@@ -159,16 +159,23 @@ pub struct WorldOptions {
     /// friction, motors; loop closures stay hard): each gets the regularisation
     /// `R_ii += s · A_ii` ([`crate::constraints::ConstraintProblem::soften`]), a compliance
     /// scaled to the row's effective mass, as MuJoCo's impedance and Drake SAP's near-rigid
-    /// regularisation are, centred on the warm start (last step's impulses,
-    /// [`crate::constraints::ConstraintProblem::center_softening`]): the compliance acts on the
-    /// change of a row's impulse from one step to the next, so a contact that carries the same
-    /// load step after step holds it as a hard one would instead of sinking under it (a ragdoll
-    /// under a heap of twenty would sink by centimetres). 0 (the default): hard rows. A row
+    /// regularisation are, centred on the impulse of the row's spring (the elastic part of last
+    /// step's impulses, [`crate::constraints::ConstraintProblem::center_softening`] and
+    /// [`Self::softness_damping`]): the compliance acts on the change of a row's impulse, so a
+    /// contact that carries the same load step after step holds it as a hard one would instead
+    /// of sinking under it (a ragdoll under a heap of twenty would sink by centimetres). 0 (the default): hard rows. A row
     /// whose impulse changes keeps a fraction `s / (1 + s)` of the velocity it would otherwise
     /// cancel in that step. This is what lets [`SolverKind::Newton`] converge in a few
     /// iterations on piles of articulated bodies (the whole problem is then smooth). Every
     /// solver of the chain solves, and is certified on, the softened problem.
     pub softness: f64,
+    /// Share β ∈ [0, 1] of the softened rows' compliance that is a damper: each softened row is
+    /// a spring and a damper side by side (Kelvin–Voigt), the softening centred on the spring's
+    /// impulse, which follows the row's impulses as `λ̄ ← (1 − β) λ + β λ̄`
+    /// ([`crate::constraints::ConstraintProblem::follow_elastic_impulses`]). 0: undamped
+    /// springs (a body lying on soft rows keeps rocking on their slowest modes); 1: dampers
+    /// alone (a loaded row sinks). Unused while [`Self::softness`] is 0.
+    pub softness_damping: f64,
     /// Accept the last solver's answer even above the tolerance (recorded) instead of failing.
     pub accept_last: bool,
     /// Contact parameters of material 0 (the default material).
@@ -236,6 +243,7 @@ impl Default for WorldOptions {
             lemke_matrix_entries: 20_000_000,
             tolerance: 1e-6,
             softness: 0.0,
+            softness_damping: 0.5,
             accept_last: true,
             contact: ContactParameters::default(),
             limits: JointLimitParameters::default(),

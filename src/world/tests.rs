@@ -224,5 +224,5 @@ fn a_contact_whose_feature_id_changed_keeps_its_impulses_and_one_that_moved_does
 fn warm_start(w: &mut World) {
     let generation = w.rows.kept_contact_rows().map(|(generation, _)| generation);
     let solve = &mut w.solve;
-    solve.warm.start(&solve.problem, &w.contacts, generation, &mut solve.lambda);
+    solve.warm.start(&solve.problem, &w.contacts, generation, &mut solve.lambda, None);
 }

@@ -11,6 +11,9 @@
 //! their impulses every step that way. When the rows are the last solve's (its kept contact
 //! rows, the same other rows in the same order: a body at rest), λ holds their impulses already
 //! and no key is formed.
+//!
+//! Softened rows ([`crate::world::WorldOptions::softness`]) carry a second value per row, the
+//! elastic part of its impulse that the softening is centred on; it is matched with the impulse.
 
 use crate::collision::Contact;
 use crate::constraints::{ConstraintProblem, RowOrigin};
@@ -30,6 +33,8 @@ pub(crate) struct WarmStart {
     /// Last step's row keys and impulses, in row order.
     keys: Vec<u64>,
     values: Vec<f64>,
+    /// Last step's elastic impulses of softened rows, in row order (empty without softness).
+    centres: Vec<f64>,
     /// The origins of last solve's rows and the generation of its kept contact rows (see
     /// `contact_rows`), and whether this step's rows are those rows.
     origins: Vec<RowOrigin>,
@@ -60,23 +65,27 @@ struct WarmContact {
 }
 
 impl WarmStart {
-    /// Writes into `lambda` the warm start of `problem`'s rows (see the module documentation).
-    /// `contacts`: the step's contacts, which the problem's contact rows name; `generation`:
-    /// that of the kept contact rows the rows start with.
+    /// Writes into `lambda` the warm start of `problem`'s rows (see the module documentation),
+    /// and into `centre`, when given, their elastic impulses of the last step (0 for a row that
+    /// had none). `contacts`: the step's contacts, which the problem's contact rows name;
+    /// `generation`: that of the kept contact rows the rows start with.
     pub(crate) fn start(
         &mut self,
         problem: &ConstraintProblem,
         contacts: &[Contact],
         generation: Option<u64>,
         lambda: &mut DVector<f64>,
+        mut centre: Option<&mut DVector<f64>>,
     ) {
         let n = problem.rows();
+        let centres_kept = self.centres.len() == n && centre.as_ref().is_some_and(|c| c.len() == n);
         // The rows of the last solve, in its order (its kept contact rows, the same other rows):
-        // λ holds their impulses already.
+        // λ (and the centre) hold their values already.
         self.same_rows = generation.is_some()
             && generation == self.generation
             && lambda.len() == n
             && self.values.len() == n
+            && (centre.is_none() || centres_kept)
             && problem.origins == self.origins;
         if self.same_rows {
             return;
@@ -84,6 +93,12 @@ impl WarmStart {
         if lambda.len() != n {
             *lambda = DVector::zeros(n);
         }
+        if let Some(c) = centre.as_deref_mut() {
+            if c.len() != n {
+                *c = DVector::zeros(n);
+            }
+        }
+        let centres = (self.centres.len() == self.values.len()).then_some(self.centres.as_slice());
         let mut counter = (0, u64::MAX);
         self.row_keys.clear();
         self.row_keys.extend((0..n).map(|i| row_key(problem, contacts, i, &mut counter)));
@@ -104,17 +119,23 @@ impl WarmStart {
             match found {
                 Some(p) => {
                     lambda[i] = self.values[p];
+                    if let Some(c) = centre.as_deref_mut() {
+                        c[i] = centres.map_or(0.0, |v| v[p]);
+                    }
                     cursor = p + 1;
                     self.matched.push(p);
                 }
                 None => {
                     lambda[i] = 0.0;
+                    if let Some(c) = centre.as_deref_mut() {
+                        c[i] = 0.0;
+                    }
                     self.missed.push(i);
                 }
             }
         }
         if !self.missed.is_empty() {
-            self.match_moved_contacts(problem, contacts, lambda);
+            self.match_moved_contacts(problem, contacts, lambda, centre);
         }
     }
 
@@ -125,7 +146,9 @@ impl WarmStart {
         problem: &ConstraintProblem,
         contacts: &[Contact],
         lambda: &mut DVector<f64>,
+        mut centre: Option<&mut DVector<f64>>,
     ) {
+        let centres = (self.centres.len() == self.values.len()).then_some(self.centres.as_slice());
         // Last step's contacts that a key matched (by their first row) are taken.
         self.taken.clear();
         self.taken.resize(self.contacts.len(), false);
@@ -163,22 +186,30 @@ impl WarmStart {
                 let first = self.contacts[e].first_row;
                 for r in 0..count {
                     lambda[i + r] = self.values[first + r];
+                    if let (Some(c), Some(v)) = (centre.as_deref_mut(), centres) {
+                        c[i + r] = v[first + r];
+                    }
                 }
             }
         }
     }
 
-    /// Keeps this step's impulses `lambda` of `problem`'s rows with their keys for the next
-    /// step's warm start.
+    /// Keeps this step's impulses `lambda` of `problem`'s rows, and their elastic parts
+    /// `centre` when the rows are softened, with their keys for the next step's warm start.
     pub(crate) fn remember(
         &mut self,
         problem: &ConstraintProblem,
         contacts: &[Contact],
         generation: Option<u64>,
         lambda: &DVector<f64>,
+        centre: Option<&DVector<f64>>,
     ) {
         self.values.clear();
         self.values.extend_from_slice(lambda.as_slice());
+        self.centres.clear();
+        if let Some(c) = centre {
+            self.centres.extend_from_slice(c.as_slice());
+        }
         self.generation = generation;
         if self.same_rows {
             // Keys and contacts describe these rows already (a contact's point has moved by less

@@ -85,6 +85,7 @@ pub(super) fn build(
         solvers: w.solver.clone().map_or(defaults.solvers.clone(), |s| s.0),
         tolerance: w.tolerance.map_or(defaults.tolerance, |x| x.0),
         softness: w.softness.map_or(defaults.softness, |x| x.0),
+        softness_damping: w.softness_damping.map_or(defaults.softness_damping, |x| x.0),
         accept_last: w.accept_last.unwrap_or(defaults.accept_last),
         lemke_operations: w.lemke_operations.map_or(defaults.lemke_operations, |x| x.0),
         lemke_matrix_entries: w.lemke_matrix_entries.unwrap_or(defaults.lemke_matrix_entries),

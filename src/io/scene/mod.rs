@@ -78,10 +78,11 @@
 //! | `[world]` | `dt` | time step, s (0.002) |
 //! | | `duration` | simulated time of [`run`], s (1) |
 //! | | `gravity` | `[x, y, z]`, m/s² (`[0, 0, -9.81]`) |
-//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"newton"`, `"pgs"`, `"pgsN"` (N sweeps) (`["pgs100", "clarabel"]`) |
+//! | | `solver` | solver chain, first choice first: a name or a list of `"lemke"`, `"clarabel"`, `"newton"`, `"newton-exact"`, `"pgs"`, `"pgsN"` (N sweeps) (`["newton-exact", "pgs100", "newton", "clarabel"]`) |
 //! | | `threads` | threads the islands of each step's problem are solved on, ≥ 1; above 1 needs the `parallel` feature ([`World::set_threads`](crate::world::World::set_threads); 1) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
 //! | | `softness` | relative compliance of contacts, limits, joint friction and motors, `R_ii = s A_ii` ([`WorldOptions::softness`](crate::world::WorldOptions::softness); 0: hard) |
+//! | | `softness_damping` | share β ∈ [0, 1] of that compliance that is a damper beside the row's spring ([`WorldOptions::softness_damping`](crate::world::WorldOptions::softness_damping); 0.5) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
 //! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"pyramid:N"` means the same) (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
@@ -466,7 +467,7 @@ pub fn parse_solvers(text: &str) -> Result<Vec<SolverKind>, String> {
         .map(|name| {
             SolverKind::parse(name).ok_or_else(|| {
                 format!(
-                    "unknown solver `{name}` (known: lemke, clarabel, newton, pgs, pgsN with N >= 1 sweeps)"
+                    "unknown solver `{name}` (known: lemke, clarabel, newton, newton-exact, pgs, pgsN with N >= 1 sweeps)"
                 )
             })
         })

@@ -83,6 +83,7 @@ pub(super) struct WorldSection {
     pub(super) solver: Option<SolverList>,
     pub(super) tolerance: Option<Positive>,
     pub(super) softness: Option<NonNegative>,
+    pub(super) softness_damping: Option<Fraction>,
     pub(super) accept_last: Option<bool>,
     pub(super) lemke_operations: Option<NonNegative>,
     pub(super) lemke_matrix_entries: Option<usize>,

@@ -19,6 +19,16 @@ use crate::world::warm_start::WarmStart;
 use crate::world::{Multibody, WorldOptions};
 use nalgebra::DVector;
 
+/// The softening of a step's rows: [`WorldOptions::softness`] and
+/// [`WorldOptions::softness_damping`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Softening {
+    /// Relative compliance s (0: hard rows).
+    pub(crate) relative: f64,
+    /// Share β of the compliance that is a damper.
+    pub(crate) damping: f64,
+}
+
 /// The solver chain, the step's problem and impulses, and what lets W be kept between steps.
 pub(crate) struct Solve {
     /// The solvers, tried in order (the chain whose settings every island's chain copies, and
@@ -30,6 +40,9 @@ pub(crate) struct Solve {
     pub(crate) problem: ConstraintProblem,
     /// Its impulses (N·s), one per row.
     pub(crate) lambda: DVector<f64>,
+    /// The elastic part of each softened row's impulse (N·s) that the softening is centred on
+    /// ([`ConstraintProblem::follow_elastic_impulses`]); unused while the rows are hard.
+    centre: DVector<f64>,
     /// The rows `problem`'s W was built from, and per multibody the factor it was built on
     /// ([`Multibody::factor_identity`]): a step whose rows and factors are the same keeps W.
     built_rows: BuiltRows,
@@ -54,6 +67,7 @@ impl Solve {
             built_contact_rows: None,
             builds: 0,
             lambda: DVector::zeros(0),
+            centre: DVector::zeros(0),
             warm: WarmStart::default(),
         }
     }
@@ -112,23 +126,29 @@ impl Solve {
 
     /// Solves the built problem island by island, warm-started from the last solve, keeps its impulses for the
     /// next, and applies them: `dofs.v_free` becomes the velocity after the impulses.
-    /// `generation`: that of the contact rows the builder starts with. `softness`: that the
-    /// problem was softened by, centred here on the warm start
-    /// ([`ConstraintProblem::center_softening`]).
+    /// `generation`: that of the contact rows the builder starts with. `softening`: that the
+    /// problem was softened by, centred here on the elastic part of the last step's impulses
+    /// ([`ConstraintProblem::center_softening`]), which the answer then moves
+    /// ([`ConstraintProblem::follow_elastic_impulses`]).
     pub(crate) fn solve(
         &mut self,
         contacts: &[Contact],
         generation: Option<u64>,
-        softness: f64,
+        softening: Softening,
         bodies: &[Multibody],
         dofs: &mut StackedDofs,
     ) -> Result<ChainReport, SolverError> {
-        self.warm.start(&self.problem, contacts, generation, &mut self.lambda);
-        if softness > 0.0 {
-            self.problem.center_softening(softness, &self.lambda);
+        let soft = softening.relative > 0.0;
+        let centre = soft.then_some(&mut self.centre);
+        self.warm.start(&self.problem, contacts, generation, &mut self.lambda, centre);
+        if soft {
+            self.problem.center_softening(softening.relative, &self.centre);
         }
         let report = self.islands.solve(&self.problem, &mut self.lambda, &self.chain)?;
-        self.warm.remember(&self.problem, contacts, generation, &self.lambda);
+        if soft {
+            self.problem.follow_elastic_impulses(softening.damping, &self.lambda, &mut self.centre);
+        }
+        self.warm.remember(&self.problem, contacts, generation, &self.lambda, soft.then_some(&self.centre));
         dofs.apply_impulses(&self.problem, &self.lambda, bodies);
         Ok(report)
     }
