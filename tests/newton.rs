@@ -276,7 +276,7 @@ fn the_centre_of_the_softening_follows_the_elastic_impulses() {
 
 /// MuJoCo's humanoid (benches/peers/humanoid_fall.xml) dropped at 2 ms on rows as soft as
 /// MuJoCo's default impedance ((1 − d)/d with d = 0.9): with the rows' dampers
-/// (`softness_damping`, 0.5 by default) it comes to rest and falls asleep within 5 s, its
+/// (`softness_damping` 0.5) it comes to rest and falls asleep within 5 s, its
 /// deepest penetration under 1 mm. Undamped (β = 0), its slowest modes on the soft rows keep it
 /// rocking: it is still awake after 5 s.
 #[test]
@@ -299,7 +299,7 @@ fn a_humanoid_on_soft_rows_comes_to_rest() {
         }
         (asleep_at, deepest)
     };
-    let (damped, deepest) = run(gelenk::world::WorldOptions::default().softness_damping);
+    let (damped, deepest) = run(0.5);
     let (undamped, _) = run(0.0);
     println!("asleep at {damped:?} s (damped), {undamped:?} s (undamped); deepest {deepest:.2e} m");
     assert!(damped.is_some_and(|t| t < 3.0), "the damped humanoid is still awake: {damped:?}");

@@ -653,3 +653,13 @@ fn run_options_set_the_softness() {
         assert_eq!(s.world.time(), 0.0);
     }
 }
+
+/// `[world] softness_damping` sets `WorldOptions::softness_damping`; outside [0, 1] it is an
+/// error at its line.
+#[test]
+fn the_softness_damping_key_is_a_fraction() {
+    let s = scene::load_str("[world]\nsoftness = 0.1\nsoftness_damping = 0.5\n[[ground]]\n", ".").unwrap();
+    assert_eq!((s.world.options().softness, s.world.options().softness_damping), (0.1, 0.5));
+    let message = load_error("[world]\nsoftness_damping = 1.5\n");
+    assert!(message.contains("line 2") && message.contains("between 0 and 1"), "{message}");
+}

@@ -82,7 +82,7 @@
 //! | | `threads` | threads the islands of each step's problem are solved on, ≥ 1; above 1 needs the `parallel` feature ([`World::set_threads`](crate::world::World::set_threads); 1) |
 //! | | `tolerance` | residual (m/s) the chain accepts (1e-6) |
 //! | | `softness` | relative compliance of contacts, limits, joint friction and motors, `R_ii = s A_ii` ([`WorldOptions::softness`](crate::world::WorldOptions::softness); 0: hard) |
-//! | | `softness_damping` | share β ∈ [0, 1] of that compliance that is a damper beside the row's spring ([`WorldOptions::softness_damping`](crate::world::WorldOptions::softness_damping); 0.5) |
+//! | | `softness_damping` | share β ∈ [0, 1] of that compliance that is a damper beside the row's spring ([`WorldOptions::softness_damping`](crate::world::WorldOptions::softness_damping); 0) |
 //! | | `accept_last` | take the last solver's answer above the tolerance rather than fail (true) |
 //! | | `friction` | `"cone"`, `"pyramid"` (4 facets) or `"pyramidN"`, 3 ≤ N ≤ 64 (`"pyramid:N"` means the same) (`"cone"`) |
 //! | | `margin` | contact margin, m (0.005) |
