@@ -306,3 +306,42 @@ fn a_humanoid_on_soft_rows_comes_to_rest() {
     assert!(deepest < 1e-3, "{deepest:.2e} m deep");
     assert_eq!(undamped, None, "the undamped humanoid came to rest");
 }
+
+/// Sixteen ragdolls (models/ragdoll_crowd.toml's 2 × 2 columns, four high) dropped into a heap
+/// at 1/60 s on hard rows with the world's default chain: every step is answered within the
+/// chain's tolerance. The heap's hard problems, whose redundant rows take Newton's method many
+/// proximal rounds, need up to `CHAIN_NEWTON_ITERATIONS` iterations in one solve.
+#[test]
+fn a_hard_heap_of_ragdolls_is_certified_every_step_by_the_default_chain() {
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
+    let text = std::fs::read_to_string(format!("{models}/ragdoll_crowd.toml")).unwrap();
+    let text: String = text
+        .lines()
+        .filter(|l| !l.starts_with("solver =") && !l.starts_with("softness ="))
+        .map(|l| match l {
+            _ if l.starts_with("count = [2, 2, 16]") => "count = [2, 2, 4]",
+            _ if l.starts_with("dt = 0.002") => "dt = 0.016666666666666666",
+            _ => l,
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(
+        text.contains("count = [2, 2, 4]") && text.contains("dt = 0.0166") && !text.contains("softness =")
+    );
+    let mut scene = gelenk::io::scene::load_str(&text, models).unwrap();
+    let options = scene.world.options();
+    assert_eq!(options.solvers, gelenk::world::WorldOptions::default().solvers);
+    let tolerance = options.tolerance;
+    let mut most_rows = 0;
+    for step in 0..90 {
+        let stats = scene.world.step().unwrap_or_else(|e| panic!("step {step}: {e}"));
+        assert!(
+            stats.residual <= tolerance,
+            "step {step}: residual {:.3e} ({})",
+            stats.residual,
+            stats.solver
+        );
+        most_rows = most_rows.max(stats.rows);
+    }
+    assert!(most_rows >= 250, "the ragdolls land on each other ({most_rows} rows at most)");
+}

@@ -9,6 +9,13 @@ use crate::solvers::{
     ClarabelSolver, ConstraintSolver, LemkeOptions, LemkeSolver, NewtonSolver, PgsSolver, SolverChain,
 };
 
+/// Most Newton iterations of one solve in a world's chain ([`NewtonSolver::max_iterations`]):
+/// enough for every island of the hard-contact heaps of 16 and 64 ragdolls read from MJCF
+/// (`benches/ragdoll_mjcf.py`) at 1/60 s, 1/240 s and 2 ms, whose redundant hard rows take many
+/// proximal rounds (docs/solvers.md). A solve that converges ends before it; it bounds the work
+/// of one that does not.
+pub const CHAIN_NEWTON_ITERATIONS: usize = 200;
+
 /// A solver of the chain, by kind.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SolverKind {
@@ -39,10 +46,10 @@ impl SolverKind {
         match *self {
             SolverKind::Lemke { facets } => Box::new(LemkeSolver { facets, ..LemkeSolver::default() }),
             SolverKind::Clarabel => Box::new(ClarabelSolver::default()),
-            SolverKind::Newton => Box::new(NewtonSolver::default()),
-            SolverKind::NewtonExact => {
+            SolverKind::Newton | SolverKind::NewtonExact => {
                 let mut newton = NewtonSolver::default();
-                newton.certify_exact = true;
+                newton.max_iterations = CHAIN_NEWTON_ITERATIONS;
+                newton.certify_exact = *self == SolverKind::NewtonExact;
                 Box::new(newton)
             }
             SolverKind::Pgs { iterations, omega } => Box::new(PgsSolver::new(iterations, 1e-10, omega, true)),
