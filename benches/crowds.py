@@ -3,8 +3,10 @@ written in place (between its `crowds:begin` and `crowds:end` markers; nothing e
 
 1. Every step answered: `gelenk simulate SCENE --dt DT --duration D --json` for the pile scenes
    (models/ragdoll_pile.toml, models/pile.toml, models/ragdoll_crowd.toml) with their own solver
-   chains, at dt = 1/60, 1/240 and 1/500 s: steps above the chain's tolerance, the largest
-   certified residual, the deepest penetration, islands, and the wall time per step.
+   chains, and `gelenk bench world FILE.xml --json` for the MJCF piles of N = 4, 16, 64 ragdolls
+   with an MJCF world's own options (hard rows, the default chain), at dt = 1/60, 1/240 and
+   1/500 s: steps above the chain's tolerance, the largest certified residual, the deepest
+   penetration, islands, and the CPU time per step.
 2. Against MuJoCo in the same run: piles of N = 4, 16, 64 ragdolls written as MJCF by
    benches/ragdoll_mjcf.py, stepped by `gelenk bench world FILE.xml --json` (sleeping off, every
    step does the full work) and by MuJoCo (`mj_step`, the same file, the same steps from the same
@@ -141,7 +143,24 @@ def main():
                 f"| {1e3 * s['cpu_per_step']:.1f} | {usage} |"
             )
             print(lines[-1], flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in [4, 16] if args.quick else [4, 16, 64]:
+            for label, dt in dts:
+                path = os.path.join(tmp, f"pile{n}.xml")
+                write_pile(path, n, dt)
+                s = bench_gelenk(args.gelenk, path, int(round(args.duration / dt)), [])
+                usage = ", ".join(f"{k} {v}" for k, v in s["solver_usage"].items())
+                lines.append(
+                    f"| MJCF pile of {n} | {label} | {s['steps']} | {s['steps_above_tolerance']} "
+                    f"| {s['max_residual']:.1e} | {1e3 * s['max_penetration']:.1f} "
+                    f"| {s['max_islands']}, {s['largest_island']} | {1e-3 * s['cpu_us_per_step']:.1f} | {usage} |"
+                )
+                print(lines[-1], flush=True)
     lines += [
+        "",
+        "MJCF piles: `python3 benches/ragdoll_mjcf.py --count N --dt DT --cone elliptic`, stepped by "
+        "`gelenk bench world FILE.xml` with the file's own world (hard rows, the default chain; sleeping "
+        "off, so that every step does the full work).",
         "",
         "### Crowds against MuJoCo (the same MJCF file, the same run)",
         "",
