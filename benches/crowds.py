@@ -91,6 +91,18 @@ def bench_mujoco(path, steps):
     return elapsed / steps * 1e6, unstable, mujoco.__version__
 
 
+def answered_row(name, label, summary, cpu_ms):
+    """A row of the every-step table from a `simulate` or `bench world` summary (the same keys)
+    and the CPU milliseconds per step."""
+    s = summary
+    usage = ", ".join(f"{k} {v}" for k, v in s["solver_usage"].items())
+    return (
+        f"| {name} | {label} | {s['steps']} | {s['steps_above_tolerance']} | {s['max_residual']:.1e} "
+        f"| {1e3 * s['max_penetration']:.1f} | {s['max_islands']}, {s['largest_island']} "
+        f"| {cpu_ms:.1f} | {usage} |"
+    )
+
+
 def write_doc(section, begin=BEGIN, end=END):
     """Puts `section` between the markers `begin` and `end` of docs/performance.md (appended
     with them when they are missing); nothing else changes."""
@@ -136,12 +148,7 @@ def main():
         for label, dt in dts:
             s = simulate(args.gelenk, scene, dt, args.duration, flags)
             name = f"{scene} `{' '.join(flags)}`" if flags else scene
-            usage = ", ".join(f"{k} {v}" for k, v in s["solver_usage"].items())
-            lines.append(
-                f"| {name} | {label} | {s['steps']} | {s['steps_above_tolerance']} | {s['max_residual']:.1e} "
-                f"| {1e3 * s['max_penetration']:.1f} | {s['max_islands']}, {s['largest_island']} "
-                f"| {1e3 * s['cpu_per_step']:.1f} | {usage} |"
-            )
+            lines.append(answered_row(name, label, s, 1e3 * s["cpu_per_step"]))
             print(lines[-1], flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         for n in [4, 16] if args.quick else [4, 16, 64]:
@@ -149,12 +156,7 @@ def main():
                 path = os.path.join(tmp, f"pile{n}.xml")
                 write_pile(path, n, dt)
                 s = bench_gelenk(args.gelenk, path, int(round(args.duration / dt)), [])
-                usage = ", ".join(f"{k} {v}" for k, v in s["solver_usage"].items())
-                lines.append(
-                    f"| MJCF pile of {n} | {label} | {s['steps']} | {s['steps_above_tolerance']} "
-                    f"| {s['max_residual']:.1e} | {1e3 * s['max_penetration']:.1f} "
-                    f"| {s['max_islands']}, {s['largest_island']} | {1e-3 * s['cpu_us_per_step']:.1f} | {usage} |"
-                )
+                lines.append(answered_row(f"MJCF pile of {n}", label, s, 1e-3 * s["cpu_us_per_step"]))
                 print(lines[-1], flush=True)
     lines += [
         "",
