@@ -45,7 +45,7 @@ mod warm_start;
 
 pub use contact_projection::{ContactProjection, ProjectionStats};
 pub use multibody::{Motor, Multibody, PoseServo, Servo};
-pub use options::{SleepOptions, SolverKind, WorldOptions};
+pub use options::{SleepOptions, SolverKind, WorldOptions, CHAIN_NEWTON_ITERATIONS};
 pub use projection::LoopProjection;
 pub use smooth::{integrator_name, parse_integrator, INTEGRATOR_NAMES};
 pub use stats::{StepStats, PHASE_NAMES};
