@@ -170,9 +170,9 @@ pub struct WorldOptions {
     /// step's impulses, [`crate::constraints::ConstraintProblem::center_softening`] and
     /// [`Self::softness_damping`]): the compliance acts on the change of a row's impulse, so a
     /// contact that carries the same load step after step holds it as a hard one would instead
-    /// of sinking under it (a ragdoll under a heap of twenty would sink by centimetres). 0 (the default): hard rows. A row
-    /// whose impulse changes keeps a fraction `s / (1 + s)` of the velocity it would otherwise
-    /// cancel in that step. This is what lets [`SolverKind::Newton`] converge in a few
+    /// of sinking under it (a ragdoll under a heap of twenty would sink by centimetres). 0 (the
+    /// default): hard rows. A row whose impulse changes keeps a fraction `s / (1 + s)` of the
+    /// velocity it would otherwise cancel in that step. This is what lets [`SolverKind::Newton`] converge in a few
     /// iterations on piles of articulated bodies (the whole problem is then smooth). Every
     /// solver of the chain solves, and is certified on, the softened problem.
     pub softness: f64,
