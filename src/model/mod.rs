@@ -10,6 +10,7 @@ mod builder;
 mod geometry;
 pub mod joint;
 pub mod ranges;
+mod trees;
 
 pub use builder::{BodySpec, InertiaIssue, JointDynamics, JointLimits, ModelBuilder, RigidInertia};
 pub use geometry::{GeometryRole, GeometrySpec, Shape};

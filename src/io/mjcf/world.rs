@@ -1,5 +1,5 @@
-//! A loaded MJCF scene put into a [`World`]: the model as one multibody at MuJoCo's `qpos0`, on the
-//! static geometry, with MuJoCo's time step, gravity and friction model.
+//! A loaded MJCF scene put into a [`World`]: the model's trees as multibodies at MuJoCo's `qpos0`,
+//! on the static geometry, with MuJoCo's time step, gravity and friction model.
 
 use super::MjcfScene;
 use crate::collision::MeshOptions;
@@ -24,20 +24,31 @@ impl MjcfScene {
     }
 
     /// A world with `options` (usually [`MjcfScene::world_options`]) holding the colliding static
-    /// geoms (material 0) and the model as one multibody named like it, at [`MjcfScene::q0`] and
-    /// at rest. The file's top-level bodies (trees on the world body: the humanoids of a pile)
-    /// collide with each other, as in MuJoCo; within one tree self-collision stays off (MuJoCo's
-    /// humanoid overlaps its own capsules between non-adjacent bodies, which hard contacts cannot
-    /// hold apart), and `<contact><exclude>`, `<flag contact>` and contype/conaffinity masks other
-    /// than both 0 are not applied.
+    /// geoms (material 0) and the model's trees at [`MjcfScene::q0`] and at rest, each tree a
+    /// multibody of its own ([`Model::split_trees`](crate::model::Model::split_trees)): the
+    /// file's top-level bodies (the humanoids of a pile) sleep, wake and form contact islands
+    /// apart, as bodies of a MuJoCo model do. A model of one tree is one multibody named like
+    /// the model; otherwise multibody k is the k-th tree in document order, named like its root
+    /// body, and the multibodies' q (and v) concatenated in order are the model's. The trees
+    /// collide with each other, as in MuJoCo; within one tree self-collision stays off
+    /// (MuJoCo's humanoid overlaps its own capsules between non-adjacent bodies, which hard
+    /// contacts cannot hold apart), and `<contact><exclude>`, `<flag contact>` and
+    /// contype/conaffinity masks other than both 0 are not applied.
     pub fn into_world(self, options: WorldOptions) -> Result<World, StepError> {
         let mut world = World::new(options);
         for s in self.statics.iter().filter(|s| s.collides) {
             world.add_static(&s.name, &s.shape, s.pose, 0)?;
         }
-        let name = self.model.name().to_string();
-        let index = world.add_multibody(&name, self.model, &MeshOptions::default())?;
-        world.multibody_mut(index).state.q.copy_from(&self.q0);
+        let trees = self.model.split_trees();
+        let one = trees.len() == 1;
+        let mut start = 0;
+        for tree in trees {
+            let name = if one { self.model.name() } else { tree.body_name(1) }.to_string();
+            let nq = tree.nq();
+            let index = world.add_multibody(&name, tree, &MeshOptions::default())?;
+            world.multibody_mut(index).state.q.copy_from_slice(&self.q0.as_slice()[start..start + nq]);
+            start += nq;
+        }
         Ok(world)
     }
 }
@@ -97,9 +108,35 @@ mod tests {
         for _ in 0..500 {
             world.step().unwrap();
         }
-        let q = &world.multibody(0).state.q;
-        let (low, high) = (q[2], q[9]);
+        assert_eq!((world.multibody_name(0), world.multibody_name(1)), ("low", "high"));
+        let (low, high) = (world.multibody(0).state.q[2], world.multibody(1).state.q[2]);
         assert!((low - 0.1).abs() < 2e-3, "lower box at {low} m");
         assert!((high - 0.3).abs() < 2e-3, "upper box at {high} m: it must rest on the lower one");
+    }
+
+    /// Each tree of a file is a multibody of its own and sleeps on its own: a box resting on the
+    /// plane falls asleep while another, dropped from 20 m, is still falling (one multibody
+    /// holding both would stay awake until both rest).
+    #[test]
+    fn the_trees_of_one_file_sleep_apart() {
+        let scene = crate::io::mjcf::load_str(
+            r#"<mujoco model="two"><worldbody><geom type="plane" size="1 1 0.1"/>
+                 <body name="resting" pos="0 0 0.1"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
+                 <body name="falling" pos="3 0 20"><freejoint/><geom type="sphere" size="0.1"/></body>
+               </worldbody></mujoco>"#,
+        )
+        .unwrap();
+        let q0 = scene.q0.clone();
+        let options = scene.world_options();
+        let mut world = scene.into_world(options).unwrap();
+        assert_eq!(world.multibody_count(), 2);
+        let q = [world.multibody(0).state.q.as_slice(), world.multibody(1).state.q.as_slice()].concat();
+        assert_eq!(q, q0.as_slice(), "the trees' q concatenated are the model's");
+        for _ in 0..500 {
+            world.step().unwrap();
+        }
+        assert!(world.multibody(0).is_asleep(), "the resting box sleeps");
+        assert!(!world.multibody(1).is_asleep(), "the sphere is still falling");
+        assert!(world.multibody(1).state.v[2] < -9.0);
     }
 }
