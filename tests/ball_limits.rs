@@ -30,6 +30,7 @@ fn ball_pendulum() -> gelenk::Model {
             swing: SWING,
             twist_lower: -TWIST,
             twist_upper: TWIST,
+            angle: std::f64::consts::PI,
         },
     ));
     b.build().unwrap()
@@ -113,10 +114,7 @@ fn urdf_ball_extension_sets_the_limits_and_bad_ones_are_errors() {
     .unwrap();
     let neck = m.joint_id("neck").unwrap();
     assert_eq!(*m.joint(neck), Joint::Ball);
-    assert_eq!(
-        m.ball_limits(neck),
-        Some(&BallLimits { twist_axis: Vec3::z(), swing: 0.7, twist_lower: -0.6, twist_upper: 0.5 })
-    );
+    assert_eq!(m.ball_limits(neck), Some(&BallLimits::cone_twist(Vec3::z(), 0.7, -0.6, 0.5)));
     let plain = load_str(&robot("", "spherical"), &UrdfOptions::default()).unwrap();
     assert!(plain.ball_limits(1).is_none() && !plain.has_ball_limits());
     for (ext, kind, needle) in [
@@ -186,4 +184,41 @@ fn a_pose_servo_turns_a_ball_joint_to_its_target_with_bounded_torque() {
         .multibody_mut(0)
         .set_pose_servo(Some(PoseServo::uniform(DVector::zeros(3), 1.0, 1.0, 1.0, 3)))
         .is_err());
+}
+
+/// MuJoCo's ball-joint `range` (a bound on the total rotation angle) read from MJCF: a capsule
+/// on a ball joint of range 40°, thrown about a tilted axis, stops within 1° of 40° (MuJoCo's
+/// row for it: distance 40° − θ, Jacobian minus the rotation axis); a range that does not
+/// start at 0 is refused, as MuJoCo refuses it.
+#[test]
+fn an_mjcf_ball_range_bounds_the_total_rotation_angle() {
+    let xml = |range: &str| {
+        format!(
+            r#"<mujoco><option gravity="0 0 0"/><worldbody><body name="rod" pos="0 0 1">
+                 <joint name="ball" type="ball" range="{range}"/>
+                 <geom type="capsule" size="0.05" fromto="0 0 0 0 0 -0.5" contype="0" conaffinity="0"/>
+               </body></worldbody></mujoco>"#
+        )
+    };
+    let scene = gelenk::io::mjcf::load_str(&xml("0 40")).unwrap();
+    let bound = 40f64.to_radians();
+    assert_eq!(scene.model.ball_limits(1), Some(&BallLimits::total_angle(bound)));
+    let options = scene.world_options();
+    let mut w = scene.into_world(options).unwrap();
+    w.multibody_mut(0).state.v = DVector::from_vec(vec![3.0, 2.0, 4.0]);
+    let (mut largest, mut angle_row) = (0.0f64, false);
+    for _ in 0..1000 {
+        w.step().unwrap();
+        angle_row |= w.problem().origins.iter().any(|o| matches!(o, RowOrigin::AngleLimit(0)));
+        let st = swing_twist(w.multibody(0).state.q.as_slice(), &Vec3::z());
+        largest = largest.max(st.angle);
+        assert!(w.constraint_violation() < ONE_DEGREE);
+    }
+    assert!(angle_row, "no total-angle row was ever created");
+    assert!(largest > bound - 0.02, "never reached the stop: {largest}");
+    assert!(largest < bound + ONE_DEGREE, "angle {largest} exceeds {bound} by more than 1°");
+    for bad in ["-10 40", "10 40", "0 0"] {
+        let e = gelenk::io::mjcf::load_str(&xml(bad)).unwrap_err().to_string();
+        assert!(e.contains("range") && e.contains("ball joint"), "{bad}: {e}");
+    }
 }

@@ -1,5 +1,6 @@
 //! Joint rows: position limits (unilateral, with bounce and ODE's StopERP/StopCFM) — of scalar
-//! coordinates and the swing cone and twist range of ball joints ([`crate::model::BallLimits`]) —, velocity
+//! coordinates and the swing cone, twist range and total angle of ball joints
+//! ([`crate::model::BallLimits`]) —, velocity
 //! motors (a bounded row: target velocity, maximum force — ODE's Vel/FMax) and Coulomb joint
 //! friction (a bounded row with target velocity 0).
 
@@ -49,7 +50,8 @@ fn has_scalar_coordinates(joint: &Joint) -> bool {
 /// joints with [`crate::model::BallLimits`]). A lower limit row has J = e_k (its impulse pushes
 /// the coordinate up), an upper one J = −e_k. A ball joint's swing row has J = −∂θ/∂ω (the unit
 /// swing axis in the child frame, see [`crate::model::swing_twist`]: its impulse turns the child
-/// back into the cone), its twist rows J = ±∂φ/∂ω. `col` is the column offset of this model's
+/// back into the cone), its twist rows J = ±∂φ/∂ω, its total-angle row J = −∂θ/∂ω (the unit
+/// rotation axis). `col` is the column offset of this model's
 /// velocities; `h` the step (s). A row exists when its stop is within `p.margin`.
 pub fn add_joint_limit_rows(
     builder: &mut ProblemBuilder,
@@ -198,6 +200,7 @@ fn add_ball_limit_rows(
         (distances[0], -st.swing_rate, RowOrigin::SwingLimit(col + iv)),
         (distances[1], st.twist_rate, RowOrigin::TwistLowerLimit(col + iv)),
         (distances[2], -st.twist_rate, RowOrigin::TwistUpperLimit(col + iv)),
+        (distances[3], -st.angle_rate, RowOrigin::AngleLimit(col + iv)),
     ];
     for (distance, direction, origin) in rows {
         // A zero direction (swing at exactly 0) cannot be at a stop of a cone wider than the margin.

@@ -109,6 +109,8 @@ pub enum RowOrigin {
     TwistLowerLimit(usize),
     /// Upper twist limit of the ball joint whose first dof has this column.
     TwistUpperLimit(usize),
+    /// Total-angle limit of the ball joint whose first dof has this column.
+    AngleLimit(usize),
     /// Velocity motor of the dof of this column.
     Motor(usize),
     /// Coulomb friction of the dof of this column.

@@ -247,7 +247,7 @@ impl BodySpec {
         self
     }
 
-    /// Sets swing-cone and twist limits (ball joints only; checked by the builder).
+    /// Sets swing-cone, twist and total-angle limits (ball joints only; checked by the builder).
     pub fn with_ball_limits(mut self, limits: BallLimits) -> Self {
         self.ball_limits = Some(limits);
         self
@@ -600,7 +600,7 @@ fn validate_limits(s: &BodySpec) -> Result<(), ModelError> {
     }
     if let Some(b) = &s.ball_limits {
         if s.joint != Joint::Ball {
-            return Err(err(format!("swing/twist limits need a ball joint, not {}", s.joint.kind_name())));
+            return Err(err(format!("ball limits need a ball joint, not {}", s.joint.kind_name())));
         }
         let pi = std::f64::consts::PI;
         if !(b.swing > 0.0 && b.swing <= pi) {
@@ -611,6 +611,9 @@ fn validate_limits(s: &BodySpec) -> Result<(), ModelError> {
                 "twist range [{}, {}] is not ordered within [−π, π]",
                 b.twist_lower, b.twist_upper
             )));
+        }
+        if !(b.angle > 0.0 && b.angle <= pi) {
+            return Err(err(format!("total rotation angle {} is not in (0, π]", b.angle)));
         }
     }
     let d = &s.dynamics;

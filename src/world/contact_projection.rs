@@ -184,7 +184,8 @@ struct LimitStop {
 enum StopKind {
     /// A scalar coordinate's lower (`upper` false) or upper stop: q index and bound.
     Scalar { qi: usize, bound: f64, upper: bool },
-    /// A ball joint's swing cone (0) or lower (1) or upper (2) twist stop: its joint and which.
+    /// A ball joint's swing cone (0), lower (1) or upper (2) twist stop, or total-angle stop
+    /// (3): its joint and which.
     Ball { joint: usize, which: usize },
 }
 
@@ -355,7 +356,8 @@ impl ContactProjector {
                 | RowOrigin::UpperLimit(c)
                 | RowOrigin::SwingLimit(c)
                 | RowOrigin::TwistLowerLimit(c)
-                | RowOrigin::TwistUpperLimit(c) => c,
+                | RowOrigin::TwistUpperLimit(c)
+                | RowOrigin::AngleLimit(c) => c,
                 _ => continue,
             };
             let Some(&block) = problem.sparsity.row_blocks(row).first() else { continue };
@@ -376,7 +378,8 @@ impl ContactProjector {
                 }
                 RowOrigin::SwingLimit(_) => StopKind::Ball { joint, which: 0 },
                 RowOrigin::TwistLowerLimit(_) => StopKind::Ball { joint, which: 1 },
-                _ => StopKind::Ball { joint, which: 2 },
+                RowOrigin::TwistUpperLimit(_) => StopKind::Ball { joint, which: 2 },
+                _ => StopKind::Ball { joint, which: 3 },
             };
             self.stops.push(LimitStop { row, multibody, kind });
         }

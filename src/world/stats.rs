@@ -228,7 +228,7 @@ impl World {
     }
 
     /// The largest loop-closure translation error (m) and joint-limit overshoot (rad or m, ball
-    /// joints' swing cone and twist range included) at the current states.
+    /// joints' swing cone, twist range and total angle included) at the current states.
     pub fn constraint_violation(&mut self) -> f64 {
         let mut worst: f64 = 0.0;
         for b in &self.bodies {

@@ -251,6 +251,7 @@ fn row_key(problem: &ConstraintProblem, contacts: &[Contact], i: usize, counter:
         RowOrigin::SwingLimit(k) => 9 << 57 | k as u64,
         RowOrigin::TwistLowerLimit(k) => 11 << 56 | k as u64,
         RowOrigin::TwistUpperLimit(k) => 13 << 55 | k as u64,
+        RowOrigin::AngleLimit(k) => 15 << 54 | k as u64,
         RowOrigin::Motor(k) => 3 << 60 | k as u64,
         RowOrigin::JointFriction(k) => 5 << 59 | k as u64,
         RowOrigin::Loop(k) => 7 << 58 | k as u64,

@@ -48,7 +48,8 @@
 //!   unless `density` or `mass` says otherwise), or from `<inertial>` (`inertiafromgeom`).
 //! - Joint damping and `frictionloss` become [`JointDynamics`](crate::model::JointDynamics); hinge and slide ranges become
 //!   [`JointLimits`](crate::model::JointLimits) when limited (`limited="auto"` means "when a range is given"); angles are in
-//!   degrees unless `<compiler angle="radian">`. Ball-joint ranges (a cone) are ignored.
+//!   degrees unless `<compiler angle="radian">`. A limited ball joint's range (`0 θ`, MuJoCo's
+//!   bound on the total rotation angle) becomes [`BallLimits::total_angle`](crate::model::BallLimits::total_angle).
 //!   Armature is not modelled by gelenk: it is recorded in [`MjcfScene::joint_armature`].
 //! - Unnamed elements get names: `body{id}` (id as MuJoCo counts bodies, world = 0),
 //!   `{body}_joint` (or `{body}_joint{k}` when the body has several), `{body}_geom{k}`, and

@@ -60,6 +60,7 @@ pub(super) fn read_extensions(
                 swing: number("swing", pi)?,
                 twist_lower: number("twist_lower", -pi)?,
                 twist_upper: number("twist_upper", pi)?,
+                angle: number("angle", pi)?,
             };
             let ext = Extension {
                 kind,

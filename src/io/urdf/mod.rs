@@ -63,7 +63,8 @@
 //! ## Extension: ball-joint limits
 //! A `spherical` joint takes anatomical limits ([`crate::model::BallLimits`]): a swing cone of
 //! half-angle `swing` (rad) about `twist_axis` (joint frame, default `0 0 1`) and a twist range
-//! `[twist_lower, twist_upper]` (rad, default ±π) about it:
+//! `[twist_lower, twist_upper]` (rad, default ±π) about it, and a bound `angle` (rad, default π:
+//! none) on the total rotation angle (MuJoCo's ball-joint `range`):
 //!
 //! ```xml
 //! <joint name="neck" type="spherical"><parent link="chest"/><child link="head"/></joint>

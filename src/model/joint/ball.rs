@@ -23,11 +23,13 @@ pub(super) fn difference(q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
     v_out.copy_from_slice(quat_log(&d).as_slice());
 }
 
-/// Anatomical limits of a ball joint: a swing cone about the twist axis plus a twist range about
-/// it (the "cone–twist" limit of ragdolls). The twist axis is given in the joint frame; at the
-/// neutral configuration it is also the child's axis. The ball's rotation `R` is split as
-/// `R = R_swing R_twist` (see [`swing_twist`]): the swing is the smallest rotation taking the
-/// twist axis `a` to `R a`, the twist a rotation about `a` in the child frame.
+/// Limits of a ball joint: a swing cone about the twist axis plus a twist range about it (the
+/// "cone–twist" limit of ragdolls), and a bound on the total rotation angle (MuJoCo's ball-joint
+/// `range`). The twist axis is given in the joint frame; at the neutral configuration it is also
+/// the child's axis. The ball's rotation `R` is split as `R = R_swing R_twist` (see
+/// [`swing_twist`]): the swing is the smallest rotation taking the twist axis `a` to `R a`, the
+/// twist a rotation about `a` in the child frame. A stop at the end of its angle's range (a
+/// swing or total angle of π, a twist bound of ±π) is no stop.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BallLimits {
     /// Twist axis `a` (unit after model building), joint frame.
@@ -38,23 +40,51 @@ pub struct BallLimits {
     pub twist_lower: f64,
     /// Upper twist limit (rad), in [twist_lower, π].
     pub twist_upper: f64,
+    /// Largest total rotation angle `2 acos|w|` of the ball from its neutral configuration
+    /// (rad), in (0, π].
+    pub angle: f64,
 }
 
+/// Marks a stop that is no stop in [`BallLimits::distances`].
+const NO_STOP: f64 = f64::INFINITY;
+
 impl BallLimits {
-    /// Distances to the three stops at ball configuration `q` (quaternion `[x, y, z, w]`):
-    /// `[swing − θ_swing, φ_twist − twist_lower, twist_upper − φ_twist]` (rad); negative means
-    /// the stop is exceeded by that much. Returns the decomposition too.
-    pub fn distances(&self, q: &[f64]) -> ([f64; 3], SwingTwist) {
-        let st = swing_twist(q, &self.twist_axis);
-        ([self.swing - st.swing, st.twist - self.twist_lower, self.twist_upper - st.twist], st)
+    /// A swing cone of half-angle `swing` about `twist_axis` and the twist range
+    /// `[twist_lower, twist_upper]` (rad), the total angle unbounded.
+    pub fn cone_twist(twist_axis: Vec3, swing: f64, twist_lower: f64, twist_upper: f64) -> Self {
+        Self { twist_axis, swing, twist_lower, twist_upper, angle: std::f64::consts::PI }
     }
 
-    /// Whether all three stops are surely further than `margin` (rad) from configuration `q`,
-    /// by bounds that need no inverse trigonometry: with `s = cos(θ/2)` and `w, p` as in
-    /// [`swing_twist`], `θ ≤ π sin(θ/2)` and, for `w > 0`, `|φ| ≤ π |p| / s` (both from
-    /// `x ≤ (π/2) sin x` on [0, π/2]). False says nothing: [`Self::distances`] decides. A
-    /// ragdoll's ball joints are mostly far from their stops, and the acos and atan2 of the
-    /// exact distances were ~1 % of its step.
+    /// The total rotation angle bounded by `angle` (rad), as MuJoCo's ball-joint `range` bounds
+    /// it; no cone and no twist range.
+    pub fn total_angle(angle: f64) -> Self {
+        let pi = std::f64::consts::PI;
+        Self { twist_axis: Vec3::z(), swing: pi, twist_lower: -pi, twist_upper: pi, angle }
+    }
+
+    /// Distances to the four stops at ball configuration `q` (quaternion `[x, y, z, w]`):
+    /// `[swing − θ_swing, φ_twist − twist_lower, twist_upper − φ_twist, angle − θ]` (rad), +∞
+    /// for a stop that is no stop; negative means the stop is exceeded by that much. Returns
+    /// the decomposition too.
+    pub fn distances(&self, q: &[f64]) -> ([f64; 4], SwingTwist) {
+        let st = swing_twist(q, &self.twist_axis);
+        let pi = std::f64::consts::PI;
+        let stop = |active: bool, distance: f64| if active { distance } else { NO_STOP };
+        let distances = [
+            stop(self.swing < pi, self.swing - st.swing),
+            stop(self.twist_lower > -pi, st.twist - self.twist_lower),
+            stop(self.twist_upper < pi, self.twist_upper - st.twist),
+            stop(self.angle < pi, self.angle - st.angle),
+        ];
+        (distances, st)
+    }
+
+    /// Whether all four stops are surely further than `margin` (rad) from configuration `q`,
+    /// by bounds that need no inverse trigonometry: with `s = cos(θ_swing/2)` and `w, p` as in
+    /// [`swing_twist`], `θ_swing ≤ π sin(θ_swing/2)`, for `w > 0` `|φ| ≤ π |p| / s`, and
+    /// `θ ≤ π sin(θ/2) = π |(x, y, z)|` (all from `x ≤ (π/2) sin x` on [0, π/2]). False says
+    /// nothing: [`Self::distances`] decides. A ragdoll's ball joints are mostly far from their
+    /// stops, and the acos and atan2 of the exact distances were ~1 % of its step.
     pub fn surely_beyond(&self, q: &[f64], margin: f64) -> bool {
         let norm2 = q.iter().map(|x| x * x).sum::<f64>();
         // (Also false for a NaN norm.)
@@ -70,11 +100,14 @@ impl BallLimits {
         }
         // Relative slack far above the rounding of either side.
         const SLACK: f64 = 1e-9;
-        let swing_bound = std::f64::consts::PI * (1.0 - s2).max(0.0).sqrt() * (1.0 + SLACK) + SLACK;
-        let twist_bound = std::f64::consts::PI * p.abs() / s2.sqrt() * (1.0 + SLACK) + SLACK;
-        swing_bound < self.swing - margin
-            && self.twist_lower + margin < -twist_bound
-            && twist_bound < self.twist_upper - margin
+        let pi = std::f64::consts::PI;
+        let swing_bound = pi * (1.0 - s2).max(0.0).sqrt() * (1.0 + SLACK) + SLACK;
+        let twist_bound = pi * p.abs() / s2.sqrt() * (1.0 + SLACK) + SLACK;
+        let angle_bound = pi * u.norm() * (1.0 + SLACK) + SLACK;
+        (self.swing >= pi || swing_bound < self.swing - margin)
+            && (self.twist_lower <= -pi || self.twist_lower + margin < -twist_bound)
+            && (self.twist_upper >= pi || twist_bound < self.twist_upper - margin)
+            && (self.angle >= pi || angle_bound < self.angle - margin)
     }
 }
 
@@ -91,6 +124,11 @@ pub struct SwingTwist {
     pub swing_rate: Vec3,
     /// `φ̇ = twist_rate · ω` (child frame); equal to `a` at the neutral configuration.
     pub twist_rate: Vec3,
+    /// Total rotation angle θ = 2 atan2(|(x, y, z)|, |w|) ∈ [0, π] (rad).
+    pub angle: f64,
+    /// `θ̇ = angle_rate · ω` (child frame): the unit rotation axis, sign(w) (x, y, z)/|(x, y, z)|
+    /// (the same in the parent frame: the rotation leaves its axis fixed). Zero at θ = 0.
+    pub angle_rate: Vec3,
 }
 
 /// Swing–twist decomposition of the unit quaternion `q = [x, y, z, w]` about the unit axis `a`:
@@ -99,7 +137,8 @@ pub struct SwingTwist {
 /// Their rates follow from `q̇ = ½ q ⊗ (0, ω)` (ω in the child frame):
 /// `φ̇ = ω·(w² a + w (a × u) + p u)/(w² + p²)` and
 /// `θ̇ = ω·(w u − p w a − p (a × u))/(√(w² + p²) sin(θ/2))` with `u = (x, y, z)`; the latter
-/// vector has unit length. Undefined (rates zero) only at θ = π exactly.
+/// vector has unit length. Undefined (rates zero) only at θ = π exactly. The total angle
+/// `2 atan2(|u|, |w|)` changes at the rate of ω along the rotation axis `sign(w) u/|u|`.
 pub fn swing_twist(q: &[f64], a: &Vec3) -> SwingTwist {
     let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     let (u, w) = (Vec3::new(q[0], q[1], q[2]) / norm, q[3] / norm);
@@ -121,7 +160,10 @@ pub fn swing_twist(q: &[f64], a: &Vec3) -> SwingTwist {
         Vec3::zeros()
     };
     let twist_rate = if s2 > 1e-24 { (a * (w * w) + a_cross_u * w + u * p) / s2 } else { Vec3::zeros() };
-    SwingTwist { swing, twist, swing_rate, twist_rate }
+    let sine = u.norm();
+    let angle = 2.0 * sine.atan2(w.abs());
+    let angle_rate = if sine > 1e-12 { u * (w.signum() / sine) } else { Vec3::zeros() };
+    SwingTwist { swing, twist, swing_rate, twist_rate, angle, angle_rate }
 }
 
 #[cfg(test)]
@@ -140,6 +182,7 @@ mod tests {
             swing: 1.2,
             twist_lower: -0.7,
             twist_upper: 0.5,
+            angle: 1.1,
         };
         let margin = 0.1;
         let (mut beyond, mut inside) = (0, 0);
@@ -208,12 +251,21 @@ mod tests {
             let a = random_unit(&mut rng);
             let r = UnitQuaternion::from_scaled_axis(random_unit(&mut rng) * rng.random_range(0.05..2.9));
             let omega = random_unit(&mut rng);
-            let q = xyzw(&r);
+            let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 }; // q and −q: one rotation
+            let q = xyzw(&r).map(|x| x * sign);
             let st = swing_twist(&q, &a);
             let ahead = swing_twist(&xyzw(&(r * UnitQuaternion::from_scaled_axis(omega * eps))), &a);
             let behind = swing_twist(&xyzw(&(r * UnitQuaternion::from_scaled_axis(-omega * eps))), &a);
             let fd_swing = (ahead.swing - behind.swing) / (2.0 * eps);
             let fd_twist = (ahead.twist - behind.twist) / (2.0 * eps);
+            let fd_angle = (ahead.angle - behind.angle) / (2.0 * eps);
+            assert!((st.angle - r.angle()).abs() < 1e-9, "angle {} vs {}", st.angle, r.angle());
+            assert!(
+                (st.angle_rate.dot(&omega) - fd_angle).abs() < 1e-6,
+                "{} vs {fd_angle}",
+                st.angle_rate.dot(&omega)
+            );
+            assert!((st.angle_rate.norm() - 1.0).abs() < 1e-9);
             // Central differences of smooth functions: error O(eps²) plus rounding ~1e-16/eps.
             assert!(
                 (st.swing_rate.dot(&omega) - fd_swing).abs() < 1e-6,

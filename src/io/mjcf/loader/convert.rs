@@ -9,7 +9,8 @@ use crate::io::mjcf::{GeomInfo, MjcfBody, MjcfScene, StaticGeometry};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::model::ranges::Quantity;
 use crate::model::{
-    BodySpec, FrameKind, GeometryRole, GeometrySpec, Joint, JointDynamics, JointLimits, RigidInertia, Shape,
+    BallLimits, BodySpec, FrameKind, GeometryRole, GeometrySpec, Joint, JointDynamics, JointLimits,
+    RigidInertia, Shape,
 };
 use roxmltree::{Node, NodeId};
 use std::collections::HashMap;
@@ -265,6 +266,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 .with_joint_name(j.name.clone())
                 .with_limits(j.limits.clone());
                 spec.dynamics = j.dynamics;
+                spec.ball_limits = j.ball_limits;
                 if last {
                     self.attach(&mut spec, std::mem::take(&mut geoms), Transform::from_translation(-j.pos));
                 }
@@ -347,6 +349,7 @@ impl<'a, 'i> Loader<'a, 'i> {
                 joint: Joint::Free,
                 pos: Vec3::zeros(),
                 limits: JointLimits::default(),
+                ball_limits: None,
                 dynamics: JointDynamics::default(),
                 armature: 0.0,
             });
@@ -394,6 +397,22 @@ impl<'a, 'i> Loader<'a, 'i> {
             limits.lower = vec![lo];
             limits.upper = vec![hi];
         }
+        let mut ball_limits = None;
+        if limited && joint == Joint::Ball {
+            // MuJoCo bounds the total rotation angle by range[1]; range[0] must be 0.
+            let Some([lo, hi]) = range else { return Err(self.missing(node, "range")) };
+            if lo != 0.0 || hi <= 0.0 {
+                let text = self.get(node, k, c, "range").unwrap_or_default();
+                return Err(self.bad_attr(
+                    node,
+                    "range",
+                    &text,
+                    "a ball joint's range is 0 and a positive angle",
+                ));
+            }
+            // An angle of π or more bounds nothing: every rotation is within π.
+            ball_limits = Some(BallLimits::total_angle(self.angle(hi).min(PI)));
+        }
         let dynamics = JointDynamics {
             damping: self.non_negative(node, k, c, "damping")?.unwrap_or(0.0),
             friction: self.non_negative(node, k, c, "frictionloss")?.unwrap_or(0.0),
@@ -404,6 +423,7 @@ impl<'a, 'i> Loader<'a, 'i> {
             joint,
             pos: Vec3::from(self.vector_c::<3>(node, k, c, "pos")?.unwrap_or_default()),
             limits,
+            ball_limits,
             dynamics,
             armature: self.non_negative(node, k, c, "armature")?.unwrap_or(0.0),
         })
@@ -524,6 +544,8 @@ struct JointRead<'a, 'i> {
     joint: Joint,
     pos: Vec3,
     limits: JointLimits,
+    /// MuJoCo's ball-joint range: a bound on the total rotation angle.
+    ball_limits: Option<BallLimits>,
     dynamics: JointDynamics,
     armature: f64,
 }
