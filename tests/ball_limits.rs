@@ -115,6 +115,12 @@ fn urdf_ball_extension_sets_the_limits_and_bad_ones_are_errors() {
     let neck = m.joint_id("neck").unwrap();
     assert_eq!(*m.joint(neck), Joint::Ball);
     assert_eq!(m.ball_limits(neck), Some(&BallLimits::cone_twist(Vec3::z(), 0.7, -0.6, 0.5)));
+    let bounded = load_str(
+        &robot(r#"<gelenk joint="neck" type="ball" angle="0.9"/>"#, "spherical"),
+        &UrdfOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(bounded.ball_limits(1), Some(&BallLimits::total_angle(0.9)));
     let plain = load_str(&robot("", "spherical"), &UrdfOptions::default()).unwrap();
     assert!(plain.ball_limits(1).is_none() && !plain.has_ball_limits());
     for (ext, kind, needle) in [
@@ -125,6 +131,7 @@ fn urdf_ball_extension_sets_the_limits_and_bad_ones_are_errors() {
             "spherical",
             "twist range",
         ),
+        (r#"<gelenk joint="neck" type="ball" angle="4"/>"#, "spherical", "total rotation angle"),
         (r#"<gelenk joint="neck" type="ball" twist_axis="0 0"/>"#, "spherical", "three numbers"),
         (r#"<gelenk joint="neck" type="ball" twist_axis="0 0 0"/>"#, "spherical", "axis"),
         (r#"<gelenk joint="neck" type="universal" axis2="0 1 0"/>"#, "spherical", "revolute or continuous"),
