@@ -1,8 +1,7 @@
 //! Joint rows: position limits (unilateral, with bounce and ODE's StopERP/StopCFM) — of scalar
 //! coordinates and the swing cone, twist range and total angle of ball joints
-//! ([`crate::model::BallLimits`]) —, velocity
-//! motors (a bounded row: target velocity, maximum force — ODE's Vel/FMax) and Coulomb joint
-//! friction (a bounded row with target velocity 0).
+//! ([`crate::model::BallLimits`]) —, velocity motors (a bounded row: target velocity, maximum
+//! force — ODE's Vel/FMax) and Coulomb joint friction (a bounded row with target velocity 0).
 
 use super::{ProblemBuilder, RowLaw, RowOrigin, Speculation};
 use crate::math::Vec3;
@@ -51,8 +50,8 @@ fn has_scalar_coordinates(joint: &Joint) -> bool {
 /// the coordinate up), an upper one J = −e_k. A ball joint's swing row has J = −∂θ/∂ω (the unit
 /// swing axis in the child frame, see [`crate::model::swing_twist`]: its impulse turns the child
 /// back into the cone), its twist rows J = ±∂φ/∂ω, its total-angle row J = −∂θ/∂ω (the unit
-/// rotation axis). `col` is the column offset of this model's
-/// velocities; `h` the step (s). A row exists when its stop is within `p.margin`.
+/// rotation axis). `col` is the column offset of this model's velocities; `h` the step (s). A
+/// row exists when its stop is within `p.margin`.
 pub fn add_joint_limit_rows(
     builder: &mut ProblemBuilder,
     model: &Model,
@@ -203,7 +202,7 @@ fn add_ball_limit_rows(
         (distances[3], -st.angle_rate, RowOrigin::AngleLimit(col + iv)),
     ];
     for (distance, direction, origin) in rows {
-        // A zero direction (swing at exactly 0) cannot be at a stop of a cone wider than the margin.
+        // A zero direction (a swing or total angle of exactly 0) is at no stop wider than the margin.
         if distance > p.margin || direction == Vec3::zeros() {
             continue;
         }
