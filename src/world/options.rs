@@ -10,10 +10,10 @@ use crate::solvers::{
 };
 
 /// Most Newton iterations of one solve in a world's chain ([`NewtonSolver::max_iterations`]):
-/// enough for every island of the hard-contact heaps of 16 and 64 ragdolls read from MJCF
-/// (`benches/ragdoll_mjcf.py`) at 1/60 s, 1/240 s and 2 ms over 10 s, whose redundant hard rows
-/// take many proximal rounds (docs/solvers.md). A solve that converges ends before it; it bounds
-/// the work of one that does not.
+/// enough for the islands of hard-contact heaps of ragdolls (`models/ragdoll_crowd.toml` on hard
+/// rows, the MJCF piles of `benches/ragdoll_mjcf.py`), whose redundant hard rows take many
+/// proximal rounds (docs/solvers.md). A solve that converges ends before it; it bounds the work
+/// of one that does not.
 pub const CHAIN_NEWTON_ITERATIONS: usize = 400;
 
 /// A solver of the chain, by kind.
