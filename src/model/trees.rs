@@ -35,6 +35,24 @@ impl Model {
             .collect()
     }
 
+    /// Where body `body` of this model is in [`Model::split_trees`]: the tree's index and the
+    /// body's index in that tree's model (the universe: tree 0, body 0). `None` for a body
+    /// index the model does not have.
+    pub fn tree_body(&self, body: usize) -> Option<(usize, usize)> {
+        if body >= self.nbodies() {
+            return None;
+        }
+        if body == 0 || self.children[0].len() <= 1 {
+            return Some((0, body));
+        }
+        let mut root = body;
+        while self.parents[root] != 0 {
+            root = self.parents[root];
+        }
+        let tree = self.children[0].iter().position(|&r| r == root)?;
+        Some((tree, body - root + 1))
+    }
+
     /// The tree of bodies `root..end` (one root tree) as a model; `with_universe`: also the
     /// frames and geometries on the universe.
     fn tree(&self, root: usize, end: usize, with_universe: bool) -> Model {
@@ -171,6 +189,13 @@ mod tests {
         assert_eq!(geometry(&trees[2]), [("box".to_string(), 1)]);
         assert!(trees[0].frame_id("plate").is_some() && trees[1].frame_id("plate").is_none());
         assert_eq!(trees[2].frame_id("universe"), Some(0));
+
+        // Every body is found in its tree under its own name.
+        for body in 0..model.nbodies() {
+            let (tree, local) = model.tree_body(body).unwrap();
+            assert_eq!(trees[tree].body_name(local), model.body_name(body));
+        }
+        assert_eq!(model.tree_body(model.nbodies()), None);
 
         let mut rng = rand::rngs::StdRng::seed_from_u64(5);
         let mut data = Data::new(&model);

@@ -29,11 +29,13 @@ impl MjcfScene {
     /// file's top-level bodies (the humanoids of a pile) sleep, wake and form contact islands
     /// apart, as bodies of a MuJoCo model do. A model of one tree is one multibody named like
     /// the model; otherwise multibody k is the k-th tree in document order, named like its root
-    /// body, and the multibodies' q (and v) concatenated in order are the model's. The trees
-    /// collide with each other, as in MuJoCo; within one tree self-collision stays off
-    /// (MuJoCo's humanoid overlaps its own capsules between non-adjacent bodies, which hard
-    /// contacts cannot hold apart), and `<contact><exclude>`, `<flag contact>` and
-    /// contype/conaffinity masks other than both 0 are not applied.
+    /// body, and the multibodies' q (and v) concatenated in order are the model's;
+    /// [`Model::tree_body`](crate::model::Model::tree_body) gives the multibody of an
+    /// [`MjcfBody::body`](super::MjcfBody::body) and its index there. The trees collide with
+    /// each other, as in MuJoCo; within one tree self-collision stays off (MuJoCo's humanoid
+    /// overlaps its own capsules between non-adjacent bodies, which hard contacts cannot hold
+    /// apart), and `<contact><exclude>`, `<flag contact>` and contype/conaffinity masks other
+    /// than both 0 are not applied.
     pub fn into_world(self, options: WorldOptions) -> Result<World, StepError> {
         let mut world = World::new(options);
         for s in self.statics.iter().filter(|s| s.collides) {
