@@ -5,7 +5,7 @@
 //! constraint problem stays small.
 //!
 //! When at least three candidates touch (a gap within a tenth of the margin, now or at the end of
-//! the step at the two colliders' velocities: [`Candidate::predicted`]), the points are chosen
+//! the step at the two colliders' velocities: `Candidate::predicted`), the points are chosen
 //! among those alone. A convex hull of a lumpy mesh on the ground has dozens of vertices
 //! within a 2 cm margin, several of them penetrating: chosen by spread among all of them, the
 //! set holds the far rim 1–2 cm above the ground and drops the penetrating vertices between,

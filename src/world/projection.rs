@@ -46,7 +46,7 @@ use nalgebra::DVector;
 pub struct LoopProjection {
     /// Largest number of (quasi-)Newton steps per step (0 turns the correction off, RATTLE
     /// with it, and leaves only the Baumgarte feedback of each closure's `erp`). RATTLE allows
-    /// itself the larger of this and 40 fixed-point sweeps ([`super::rattle`]).
+    /// itself the larger of this and 40 fixed-point sweeps (the world's RATTLE step).
     pub iterations: usize,
     /// Stop when every closure error component is below this (m or rad).
     pub tolerance: f64,

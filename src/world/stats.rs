@@ -50,7 +50,7 @@ pub struct StepStats {
     pub phase_ns: [u64; 7],
     /// The scheme of the step: `"semi-implicit-euler"` for the velocity-level step,
     /// `"rattle"` when every moving multibody was a linkage stepped by RATTLE (its only rows
-    /// its own loop closures: see [`super::rattle`]), `"semi-implicit-euler+rattle"` when some
+    /// its own loop closures), `"semi-implicit-euler+rattle"` when some
     /// were, else the name of [`super::WorldOptions::integrator`] (a smooth step, see
     /// [`super::smooth`]).
     pub integrator: &'static str,

@@ -123,9 +123,9 @@
 //! | | `material` | material of every collider of the model (0) |
 //! | | `missing_meshes` | `"error"` (default) or `"skip"` collision meshes that cannot be found or read |
 //! | | `package_paths` | directories searched for `package://` URIs |
-//! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`]) (false) |
-//! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`]) (false) |
-//! | | `inertia_from_collision` | each link's rotational inertia computed from its collision shapes with the file's mass, as PyBullet does by default ([`UrdfOptions::inertia_from_collision`]) (false) |
+//! | | `strict` | every URDF loader warning is an error ([`UrdfOptions::strict`](crate::io::urdf::UrdfOptions::strict)) (false) |
+//! | | `balance_inertia` | inconsistent link inertias balanced as MuJoCo's `balanceinertia` ([`UrdfOptions::balance_inertia`](crate::io::urdf::UrdfOptions::balance_inertia)) (false) |
+//! | | `inertia_from_collision` | each link's rotational inertia computed from its collision shapes with the file's mass, as PyBullet does by default ([`UrdfOptions::inertia_from_collision`](crate::io::urdf::UrdfOptions::inertia_from_collision)) (false) |
 //! | `[[body]]` | `shape` | `"box"` (`size = [x, y, z]`), `"sphere"` (`radius`), `"capsule"` or `"cylinder"` (`radius`, `length` along z) |
 //! | | `mass` or `density` | kg, or kg/m³ (density 1000) |
 //! | | `name` | multibody name (`body{i}`); with `count = n`, `{name}{k}`; with `count = [nx, ny, nz]`, `{name}_{i}_{j}_{k}` |

@@ -85,7 +85,7 @@ pub struct LemkeOptions {
     /// rounding noise of ill-conditioned bases decide hundreds of ties, and paths wander (blocks
     /// of 600 and more variables) into singular bases and false rays; a δ near the tolerance
     /// keeps the blocks at the size of the answer's active set and the overshoots, cleaned by
-    /// [`path::Path::clean`] and restarts, within the tolerance.
+    /// `Path::clean` and restarts, within the tolerance.
     pub degeneracy_tolerance: f64,
     /// Most floating-point operations of the bases' solves and factorizations over all paths
     /// of one solve (estimated from their sizes; 0: no limit but the pivots'). A pivot costs

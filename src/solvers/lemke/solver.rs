@@ -53,9 +53,9 @@ impl Default for LemkeSolver {
 ///   last answer's impulses bit for bit (a world that matched its rows to the last step's found
 ///   each in its place): a resting stack's basis stays feasible as q changes a little, and is
 ///   then the answer without a pivot; a slightly infeasible one is repaired by a few pivots
-///   from it ([`super::path::Path::restart`]).
+///   from it (`Path::restart`).
 /// - Otherwise, or when that start fails, a basis is read from the warm-start impulses
-///   ([`SparseLcp::basis_of_impulses`]): a world matches them to the new rows by their contacts'
+///   (`SparseLcp::basis_of_impulses`): a world matches them to the new rows by their contacts'
 ///   identity, so contacts that came, went or changed places keep their impulses.
 /// - A path from a start is held to as many pivots as the start has active variables plus 100;
 ///   a start that fails is dropped for the paths from the identity, so the answer is the one a
