@@ -173,9 +173,9 @@ def load_scene(path: PathLike) -> "World":
     solver and time step. Raises FileNotFoundError, ValueError (naming the file, line and key).
     """
 def load_mjcf(path: PathLike) -> "World":
-    """Loads an MJCF file (MuJoCo's format) as a world: the model as one multibody at MuJoCo's
-    `qpos0`, on its static geometry, with its time step, gravity and friction model. Raises
-    FileNotFoundError, ValueError.
+    """Loads an MJCF file (MuJoCo's format) as a world: each of the model's trees (a top-level body
+    and what hangs from it) a multibody at MuJoCo's `qpos0`, on its static geometry, with its
+    time step, gravity and friction model. Raises FileNotFoundError, ValueError.
     """
 def integrate(model: Model, q: Array, v: Array, dt: float = 1.0) -> Array:
     """`q ⊕ v·dt`: the configuration reached from `q` moving at `v` for `dt` seconds, joint by

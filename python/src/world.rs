@@ -540,8 +540,8 @@ pub fn load_scene(path: std::path::PathBuf) -> PyResult<PyWorld> {
 }
 
 /// Loads an MJCF file (MuJoCo's format) as a world: each of the model's trees (a top-level body
-/// and what hangs from it) a multibody at MuJoCo's `qpos0`, on its static geometry, with its time step, gravity and friction model. Raises
-/// FileNotFoundError, ValueError.
+/// and what hangs from it) a multibody at MuJoCo's `qpos0`, on its static geometry, with its
+/// time step, gravity and friction model. Raises FileNotFoundError, ValueError.
 #[pyfunction]
 pub fn load_mjcf(path: std::path::PathBuf) -> PyResult<PyWorld> {
     errors::guard(|| {
