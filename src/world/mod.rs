@@ -111,6 +111,16 @@ pub enum StepError {
     /// ([`World::set_threads`]).
     #[error("threads: {0}")]
     Threads(String),
+    /// A setting of [`WorldOptions`] the step cannot use ([`WorldOptions::check`]).
+    #[error("world option `{name}` = {value}: expected {expected}")]
+    InvalidOption {
+        /// The option's field name.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// What it must be.
+        expected: &'static str,
+    },
     /// A multibody or body index out of range.
     #[error("index {index} is out of range ({count} {what})")]
     IndexOutOfRange {
@@ -293,7 +303,8 @@ impl World {
     }
 
     /// Sets the relative softness of the rows ([`WorldOptions::softness`]) from the next step
-    /// on.
+    /// on; a negative or non-finite value makes that step fail with
+    /// [`StepError::InvalidOption`].
     pub fn set_softness(&mut self, relative: f64) {
         self.options.softness = relative;
     }
@@ -547,6 +558,7 @@ impl World {
     pub fn step(&mut self) -> Result<&StepStats, StepError> {
         let h = self.options.dt;
         let mut timer = PhaseTimer::start(self.options.time_phases);
+        self.options.check()?;
         stages::check::states(&self.bodies, &self.names)?;
         stages::kinematics::run(&mut self.bodies, &self.names, &mut self.collision)?;
         timer.lap(Phase::Kinematics);

@@ -1,6 +1,7 @@
 //! Options of a [`super::World`]: time step, solver chain, friction model, joint-limit and
 //! sleeping parameters.
 
+use super::StepError;
 use crate::collision::CollisionOptions;
 use crate::constraints::{ContactParameters, FrictionModel, JointLimitParameters, Speculation};
 use crate::integrators::IntegratorKind;
@@ -229,6 +230,30 @@ pub struct WorldOptions {
     /// same contacts get rows; only their targets are new ([`super::World::contact_row_reuses`]
     /// counts those steps).
     pub mass_matrix_reuse: Option<f64>,
+}
+
+impl WorldOptions {
+    /// Checks the settings every step reads, which the fields' types do not bound: a finite
+    /// positive [`Self::dt`] and [`Self::tolerance`], a finite non-negative [`Self::softness`]
+    /// and a [`Self::softness_damping`] in [0, 1]. [`super::World::step`] calls it first, so a
+    /// world whose options were set out of range (`World::set_softness(-1.0)`, a NaN step)
+    /// stops with [`StepError::InvalidOption`] and its state unchanged.
+    pub fn check(&self) -> Result<(), StepError> {
+        let bad = |name, value, expected| Err(StepError::InvalidOption { name, value, expected });
+        if !(self.dt.is_finite() && self.dt > 0.0) {
+            return bad("dt", self.dt, "a finite time step above 0 s");
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
+            return bad("tolerance", self.tolerance, "a finite residual above 0 m/s");
+        }
+        if !(self.softness.is_finite() && self.softness >= 0.0) {
+            return bad("softness", self.softness, "a finite number of at least 0");
+        }
+        if !(0.0..=1.0).contains(&self.softness_damping) {
+            return bad("softness_damping", self.softness_damping, "a fraction in [0, 1]");
+        }
+        Ok(())
+    }
 }
 
 impl Default for WorldOptions {

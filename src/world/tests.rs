@@ -226,3 +226,29 @@ fn warm_start(w: &mut World) {
     let solve = &mut w.solve;
     solve.warm.start(&solve.problem, &w.contacts, generation, &mut solve.lambda, None);
 }
+
+/// Options out of range stop the step before anything changes, naming the option: a softness
+/// set below 0 through the API, a NaN time step, a damping fraction above 1; back in range,
+/// the world steps again.
+#[test]
+fn options_out_of_range_stop_the_step_with_the_option_named() {
+    let mut w = resting_box();
+    let before = w.bodies[0].state.clone();
+    w.set_softness(-0.1);
+    let e = w.step().unwrap_err();
+    assert!(matches!(e, StepError::InvalidOption { name: "softness", .. }), "{e}");
+    assert_eq!(w.bodies[0].state, before, "the state changed");
+    w.set_softness(0.0);
+    w.step().unwrap();
+    for (options, name) in [
+        (WorldOptions { dt: f64::NAN, ..WorldOptions::default() }, "dt"),
+        (WorldOptions { dt: 0.0, ..WorldOptions::default() }, "dt"),
+        (WorldOptions { tolerance: -1.0, ..WorldOptions::default() }, "tolerance"),
+        (WorldOptions { softness_damping: 1.5, ..WorldOptions::default() }, "softness_damping"),
+    ] {
+        let mut w = World::new(options);
+        let e = w.step().unwrap_err();
+        assert!(matches!(e, StepError::InvalidOption { name: n, .. } if n == name), "{name}: {e}");
+        assert!(e.to_string().contains(name), "{e}");
+    }
+}
