@@ -16,9 +16,10 @@ impl Model {
     /// `root..end` (depth-first numbering keeps a subtree contiguous) with the same joints,
     /// placements (in the same universe frame), inertias, limits, dynamics, frames and
     /// geometries, and its configuration is the stretch `idx_q(root)..` of the whole model's q
-    /// (likewise v): the trees' q concatenated in order are the model's q. Frames and geometries
-    /// on the universe itself go to the first tree. A model whose universe carries no tree is
-    /// returned whole. Each tree keeps the model's name, gravity and source directory.
+    /// (likewise v): the trees' q concatenated in order are the model's q. Frames, geometries
+    /// and the fused inertia of bodies welded to the universe go to the first tree. A model of
+    /// one tree (or none) is returned whole. Each tree keeps the model's name, gravity and
+    /// source directory.
     pub fn split_trees(&self) -> Vec<Model> {
         let roots = self.root_bodies();
         if roots.len() <= 1 {
