@@ -94,19 +94,24 @@ mod tests {
         assert_eq!(statics, ["world_geom0"]);
     }
 
+    /// The world of an MJCF document with its own options, and the scene's initial q.
+    fn world_of(xml: &str) -> (crate::world::World, nalgebra::DVector<f64>) {
+        let scene = crate::io::mjcf::load_str(xml).unwrap();
+        let q0 = scene.q0.clone();
+        let options = scene.world_options();
+        (scene.into_world(options).unwrap(), q0)
+    }
+
     /// Two free boxes dropped one above the other in one file: the upper one lands on the lower
     /// (the file's bodies collide with each other, as in MuJoCo), it does not pass through it.
     #[test]
     fn the_bodies_of_one_file_collide_with_each_other() {
-        let scene = crate::io::mjcf::load_str(
+        let (mut world, _) = world_of(
             r#"<mujoco model="stack"><worldbody><geom type="plane" size="1 1 0.1"/>
                  <body name="low" pos="0 0 0.1"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
                  <body name="high" pos="0 0 0.35"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
                </worldbody></mujoco>"#,
-        )
-        .unwrap();
-        let options = scene.world_options();
-        let mut world = scene.into_world(options).unwrap();
+        );
         for _ in 0..500 {
             world.step().unwrap();
         }
@@ -121,16 +126,12 @@ mod tests {
     /// holding both would stay awake until both rest).
     #[test]
     fn the_trees_of_one_file_sleep_apart() {
-        let scene = crate::io::mjcf::load_str(
+        let (mut world, q0) = world_of(
             r#"<mujoco model="two"><worldbody><geom type="plane" size="1 1 0.1"/>
                  <body name="resting" pos="0 0 0.1"><freejoint/><geom type="box" size="0.1 0.1 0.1"/></body>
                  <body name="falling" pos="3 0 20"><freejoint/><geom type="sphere" size="0.1"/></body>
                </worldbody></mujoco>"#,
-        )
-        .unwrap();
-        let q0 = scene.q0.clone();
-        let options = scene.world_options();
-        let mut world = scene.into_world(options).unwrap();
+        );
         assert_eq!(world.multibody_count(), 2);
         let q = [world.multibody(0).state.q.as_slice(), world.multibody(1).state.q.as_slice()].concat();
         assert_eq!(q, q0.as_slice(), "the trees' q concatenated are the model's");
