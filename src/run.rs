@@ -35,6 +35,9 @@ pub struct RunOptions {
     /// Relative softness of the rows instead of `[world] softness`
     /// ([`crate::world::WorldOptions::softness`]).
     pub softness: Option<f64>,
+    /// The softened rows' damper share instead of `[world] softness_damping`
+    /// ([`crate::world::WorldOptions::softness_damping`]; a fraction in [0, 1]).
+    pub softness_damping: Option<f64>,
     /// Threads the islands of each step are solved on instead of `[world] threads`
     /// ([`crate::world::World::set_threads`]; ≥ 1).
     pub threads: Option<usize>,
@@ -270,6 +273,12 @@ pub fn run(
             )));
         }
         scene.world.set_softness(softness);
+    }
+    if let Some(beta) = options.softness_damping {
+        if !(0.0..=1.0).contains(&beta) {
+            return Err(SceneError::Options(format!("softness_damping must be in [0, 1], got {beta}")));
+        }
+        scene.world.set_softness_damping(beta);
     }
     if let Some(threads) = options.threads {
         scene.world.set_threads(threads).map_err(|e| SceneError::Options(e.to_string()))?;

@@ -361,3 +361,34 @@ fn simulate_prints_its_summary_and_records_the_states() {
     let names: Vec<&str> = phases.split(", ").map(|p| p.split(' ').next().unwrap()).collect();
     assert_eq!(names, gelenk::world::PHASE_NAMES);
 }
+
+/// `--softness-damping` sets the rows' damper share for `simulate` and `bench world`; a value
+/// outside [0, 1] is one line on stderr and a non-zero status.
+#[test]
+fn softness_damping_is_a_flag_checked_as_a_fraction() {
+    let scene = model_path("ragdoll_fall.toml");
+    let ok = gelenk(&[
+        "simulate",
+        &scene,
+        "--duration",
+        "0.05",
+        "--softness",
+        "0.05",
+        "--softness-damping",
+        "0.5",
+        "--json",
+    ]);
+    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    for command in
+        [&["simulate", &scene][..], &["bench", "world", &scene, "--steps", "2", "--rounds", "1"][..]]
+    {
+        let args: Vec<&str> = command.iter().copied().chain(["--softness-damping", "1.5"]).collect();
+        let out = gelenk(&args);
+        assert!(!out.status.success(), "{command:?} accepted 1.5");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            stderr.contains("softness") && stderr.contains("[0, 1]") && stderr.lines().count() == 1,
+            "{stderr}"
+        );
+    }
+}

@@ -309,6 +309,13 @@ impl World {
         self.options.softness = relative;
     }
 
+    /// Sets the share β of the softened rows' impulses carried by their dampers
+    /// ([`WorldOptions::softness_damping`]) from the next step on; a value outside [0, 1] makes
+    /// that step fail with [`StepError::InvalidOption`].
+    pub fn set_softness_damping(&mut self, beta: f64) {
+        self.options.softness_damping = beta;
+    }
+
     /// Replaces the integrator of smooth steps ([`WorldOptions::integrator`]).
     pub fn set_integrator(&mut self, integrator: IntegratorKind) {
         self.options.integrator = integrator;

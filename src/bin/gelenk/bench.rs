@@ -38,6 +38,10 @@ pub enum BenchCommand {
         /// Relative softness of the rows instead of the scene's (R_ii = s A_ii; 0: hard).
         #[arg(long)]
         softness: Option<f64>,
+        /// Share of the softened rows' impulses carried by their dampers instead of the
+        /// scene's (a fraction in [0, 1]).
+        #[arg(long)]
+        softness_damping: Option<f64>,
         /// The contacts' position correction after each step on or off instead of the scene's
         /// (on by default).
         #[arg(long, value_name = "on|off")]
@@ -74,6 +78,7 @@ pub fn run(command: BenchCommand) -> Result<(), String> {
             scene,
             solver,
             softness,
+            softness_damping,
             contact_projection,
             steps,
             settle,
@@ -88,7 +93,7 @@ pub fn run(command: BenchCommand) -> Result<(), String> {
                 solver.as_deref(),
                 steps,
                 settle,
-                BenchOptions { sleep, controls, softness, contact_projection },
+                BenchOptions { sleep, controls, softness, softness_damping, contact_projection },
                 rounds,
                 json,
             )
@@ -215,12 +220,13 @@ fn is_mjcf(path: &Path) -> bool {
     path.extension().is_some_and(|e| e.eq_ignore_ascii_case("xml"))
 }
 
-/// Switches of `bench world`: sleeping kept on, vehicle commands applied, the rows' softness,
-/// the contact projection on or off.
+/// Switches of `bench world`: sleeping kept on, vehicle commands applied, the rows' softness and
+/// their dampers' share, the contact projection on or off.
 struct BenchOptions {
     sleep: bool,
     controls: bool,
     softness: Option<f64>,
+    softness_damping: Option<f64>,
     contact_projection: Option<bool>,
 }
 
@@ -229,7 +235,7 @@ fn bench_world(
     solver: Option<&str>,
     steps: usize,
     settle: usize,
-    BenchOptions { sleep, controls, softness, contact_projection }: BenchOptions,
+    BenchOptions { sleep, controls, softness, softness_damping, contact_projection }: BenchOptions,
     rounds: usize,
     as_json: bool,
 ) -> Result<(), String> {
@@ -251,6 +257,12 @@ fn bench_world(
                 return Err(format!("--softness must be finite and non-negative, got {s}"));
             }
             world.set_softness(s);
+        }
+        if let Some(beta) = softness_damping {
+            if !(0.0..=1.0).contains(&beta) {
+                return Err(format!("--softness-damping must be in [0, 1], got {beta}"));
+            }
+            world.set_softness_damping(beta);
         }
         if let Some(enabled) = contact_projection {
             let projection = world.options().contact_projection;

@@ -22,6 +22,10 @@ pub struct SimulateArgs {
     /// scene's (R_ii = s A_ii; 0: hard).
     #[arg(long)]
     softness: Option<f64>,
+    /// Share of the softened rows' impulses carried by a damper beside each row's spring,
+    /// instead of the scene's (a fraction in [0, 1]; see `softness_damping` in docs/scenes.md).
+    #[arg(long)]
+    softness_damping: Option<f64>,
     /// Threads the islands of each step are solved on instead of the scene's (≥ 1; the
     /// trajectory is the same on any count).
     #[arg(long)]
@@ -78,6 +82,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
         record_every,
         record_frames: glb.is_some(),
         softness: args.softness,
+        softness_damping: args.softness_damping,
         threads: args.threads,
         contact_projection: args.contact_projection.map(crate::Switch::on),
     };
