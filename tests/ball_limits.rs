@@ -24,15 +24,10 @@ fn ball_pendulum() -> gelenk::Model {
         Vec3::new(0.0, 0.0, -0.5),
         nalgebra::Matrix3::from_diagonal(&Vec3::new(0.02, 0.02, 0.002)),
     );
-    b.add_body(BodySpec::new("rod", "universe", Joint::Ball, Transform::identity(), rod).with_ball_limits(
-        BallLimits {
-            twist_axis: Vec3::new(0.0, 0.0, -1.0),
-            swing: SWING,
-            twist_lower: -TWIST,
-            twist_upper: TWIST,
-            angle: std::f64::consts::PI,
-        },
-    ));
+    let limits = BallLimits::cone_twist(Vec3::new(0.0, 0.0, -1.0), SWING, -TWIST, TWIST);
+    b.add_body(
+        BodySpec::new("rod", "universe", Joint::Ball, Transform::identity(), rod).with_ball_limits(limits),
+    );
     b.build().unwrap()
 }
 
