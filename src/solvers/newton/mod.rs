@@ -636,11 +636,11 @@ fn evaluate(ws: &mut Workspace) {
 
 /// What changed since the Hessian was last assembled (all of it before the solve's first
 /// assembly): some group's G, some group's zone.
-fn pending_changes(ws: &Workspace) -> Assembly {
+fn pending_changes(ws: &Workspace) -> PendingChanges {
     if !ws.assembled {
-        return Assembly { changed: true, zones_changed: true };
+        return PendingChanges { changed: true, zones_changed: true };
     }
-    let mut pending = Assembly { changed: false, zones_changed: false };
+    let mut pending = PendingChanges { changed: false, zones_changed: false };
     for (g, group) in ws.groups.iter().enumerate() {
         pending.zones_changed |= ws.zones[g] != ws.assembled_zones[g];
         let entries = group.rows().1.pow(2);
@@ -695,7 +695,7 @@ fn assemble(ws: &mut Workspace) {
 }
 
 /// What changed in the Hessian's terms since its last assembly.
-struct Assembly {
+struct PendingChanges {
     /// Some group's G (H would be new).
     changed: bool,
     /// Some group's zone (the active set).
