@@ -10,7 +10,7 @@ use super::check::check_q;
 use super::crba::finite_mass_matrix;
 use crate::data::Data;
 use crate::error::DynamicsError;
-use crate::math::{Force, Mat3, Motion, SpatialInertia, Transform, Vec3};
+use crate::math::{fma, Force, Mat3, Motion, SpatialInertia, Transform, Vec3};
 use crate::model::{Joint, Model};
 use nalgebra::{DMatrix, DVector};
 use std::ops::Range;
@@ -92,21 +92,6 @@ impl<'a> ForceRows<'a> {
             (fx[k], fy[k], fz[k], mx[k], my[k], mz[k]) = (f[0], f[1], f[2], f[3], f[4], f[5]);
             visit(first + k, &f);
         }
-    }
-}
-
-/// `a b + c`: fused (one rounding) where the target has FMA instructions, as the C++ peers'
-/// `-O3 -march=native` builds contract it; the plain form elsewhere, where `mul_add` would be a
-/// library call.
-#[inline(always)]
-fn fma(a: f64, b: f64, c: f64) -> f64 {
-    #[cfg(target_feature = "fma")]
-    {
-        a.mul_add(b, c)
-    }
-    #[cfg(not(target_feature = "fma"))]
-    {
-        a * b + c
     }
 }
 

@@ -109,6 +109,21 @@ pub(crate) fn dot2(a: &[f64], b: &[f64], x: &[f64]) -> (f64, f64) {
     ((s[0] + s[1]) + (s[2] + s[3]), (t[0] + t[1]) + (t[2] + t[3]))
 }
 
+/// `a b + c`: fused (one rounding) where the target has FMA instructions, as the C++ peers'
+/// `-O3 -march=native` builds contract it; the plain form elsewhere, where `mul_add` would be a
+/// library call.
+#[inline(always)]
+pub(crate) fn fma(a: f64, b: f64, c: f64) -> f64 {
+    #[cfg(target_feature = "fma")]
+    {
+        a.mul_add(b, c)
+    }
+    #[cfg(not(target_feature = "fma"))]
+    {
+        a * b + c
+    }
+}
+
 /// Σ a_k b_k with four partial sums, so that the additions pipeline (a single running sum is
 /// bound by the latency of one addition per entry).
 pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {

@@ -18,6 +18,7 @@
 //! The order and the panels are kept while the set of coupled block pairs stays the same: a
 //! resting pile factors with the analysis of an earlier step.
 
+use crate::math::fma;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::amd;
 use faer::sparse::SymbolicSparseColMatRef;
@@ -45,6 +46,9 @@ pub(super) struct Hessian {
     /// [`Hessian::solve`]).
     scatter: Vec<usize>,
     update: Vec<f64>,
+    /// Scratch of [`Hessian::factor`]: a panel's rows below its diagonal block, copied with
+    /// their column height padded to whole register tiles (see [`lower_gram`]).
+    packed: Vec<f64>,
     /// Per block, where its panel starts in `values` (panels are laid out in elimination order)
     /// and the panel's height (its own width plus the widths of the blocks below).
     panel_start: Vec<usize>,
@@ -344,8 +348,19 @@ impl Hessian {
     /// Factors H = L Lᵀ (its values as added since [`Self::reset`], which stay assembled).
     pub(super) fn factor(&mut self) -> Result<(), NotPositiveDefinite> {
         self.values.copy_from_slice(&self.assembled);
-        let Self { order, blocks, below, below_start, panel_start, height, values, scatter, update, .. } =
-            self;
+        let Self {
+            order,
+            blocks,
+            below,
+            below_start,
+            panel_start,
+            height,
+            values,
+            scatter,
+            update,
+            packed,
+            ..
+        } = self;
         for &b in order.iter() {
             let width = blocks[b].1;
             let (start, h) = (panel_start[b], height[b]);
@@ -359,32 +374,17 @@ impl Hessian {
                 continue;
             }
             // U = L_{below,b} L_{below,b}ᵀ, the update of every later block this one reaches
-            // (lower triangle, column-major), by rank-one updates over contiguous columns.
-            update.clear();
-            update.resize(below_rows * below_rows, 0.0);
-            let column = |kk: usize| &panel[kk * h + width..(kk + 1) * h];
-            let mut kk = 0;
-            while kk + 2 <= width {
-                let (c0, c1) = (column(kk), column(kk + 1));
-                for j in 0..below_rows {
-                    let (f0, f1) = (c0[j], c1[j]);
-                    let target = &mut update[j * below_rows + j..(j + 1) * below_rows];
-                    for ((t, s0), s1) in target.iter_mut().zip(&c0[j..]).zip(&c1[j..]) {
-                        *t += f0 * s0 + f1 * s1;
-                    }
-                }
-                kk += 2;
+            // (lower triangle, column-major, `ld` rows per column).
+            let ld = below_rows.next_multiple_of(TILE_ROWS);
+            packed.clear();
+            packed.resize(width * ld, 0.0);
+            for k in 0..width {
+                packed[k * ld..k * ld + below_rows].copy_from_slice(&panel[k * h + width..(k + 1) * h]);
             }
-            if kk < width {
-                let c0 = column(kk);
-                for j in 0..below_rows {
-                    let f0 = c0[j];
-                    let target = &mut update[j * below_rows + j..(j + 1) * below_rows];
-                    for (t, s0) in target.iter_mut().zip(&c0[j..]) {
-                        *t += f0 * s0;
-                    }
-                }
+            if update.len() < ld * ld {
+                update.resize(ld * ld, 0.0);
             }
+            lower_gram(packed, ld, width, &mut update[..ld * ld]);
             let base = start + h * width;
             for (p, &(r1, o1)) in entries.iter().enumerate() {
                 let w1 = blocks[r1].1;
@@ -402,7 +402,7 @@ impl Hessian {
                         let from = if diagonal { j } else { 0 };
                         let column = s1 + j * h1 + dest;
                         let target = &mut later[column + from..column + w2];
-                        let u = (o1 - width + j) * below_rows + o2 - width;
+                        let u = (o1 - width + j) * ld + o2 - width;
                         for (t, s) in target.iter_mut().zip(&update[u + from..u + w2]) {
                             *t -= s;
                         }
@@ -459,6 +459,40 @@ impl Hessian {
                     s -= l * x;
                 }
                 rhs[c + j] = s / column[j];
+            }
+        }
+    }
+}
+
+/// Rows of a tile of [`lower_gram`]: a multiple of the SIMD width, so that a tile's column is
+/// whole vectors.
+const TILE_ROWS: usize = 8;
+/// Columns of a tile of [`lower_gram`]: with [`TILE_ROWS`], 32 accumulators, which the
+/// registers hold.
+const TILE_COLS: usize = 4;
+
+/// `update` (`ld` × `ld`, column-major) ← the lower triangle of B Bᵀ, B = `packed` (`ld` rows,
+/// a multiple of [`TILE_ROWS`], and `width` columns, column-major, zero below its own rows).
+/// Tiles of [`TILE_ROWS`] × [`TILE_COLS`] entries accumulate over all `width` columns in
+/// registers and are stored once (a rank-one pass per column would load and store the whole
+/// triangle `width` times); the tiles on the diagonal also write a few entries above it,
+/// which nothing reads.
+fn lower_gram(packed: &[f64], ld: usize, width: usize, update: &mut [f64]) {
+    for j in (0..ld).step_by(TILE_COLS) {
+        for i in (j - j % TILE_ROWS..ld).step_by(TILE_ROWS) {
+            let mut acc = [[0.0; TILE_ROWS]; TILE_COLS];
+            for column in packed.chunks_exact(ld).take(width) {
+                let a: &[f64; TILE_ROWS] = column[i..i + TILE_ROWS].try_into().expect("a whole tile");
+                let f: &[f64; TILE_COLS] = column[j..j + TILE_COLS].try_into().expect("whole columns");
+                for (acc, f) in acc.iter_mut().zip(f) {
+                    for (t, a) in acc.iter_mut().zip(a) {
+                        *t = fma(*a, *f, *t);
+                    }
+                }
+            }
+            for (c, acc) in acc.iter().enumerate() {
+                let at = (j + c) * ld + i;
+                update[at..at + TILE_ROWS].copy_from_slice(acc);
             }
         }
     }
@@ -658,6 +692,33 @@ mod tests {
             }
             check_against_dense(&mut h, &dense);
         }
+    }
+
+    /// Wide blocks all coupled to each other: the first blocks eliminated have panels tens of
+    /// rows high, not multiples of a tile, so their updates take several register tiles and
+    /// padded ones, and the factor still solves the dense matrix.
+    #[test]
+    fn tall_panels_factor_through_whole_tiles_and_tails() {
+        let widths = [9, 13, 6, 11, 7];
+        let mut blocks = Vec::new();
+        let mut col = 0;
+        for w in widths {
+            blocks.push((col, w));
+            col += w;
+        }
+        let nv = col;
+        let pairs: Vec<(usize, usize)> = (0..5).flat_map(|a| (a + 1..5).map(move |b| (a, b))).collect();
+        let mut h = Hessian::default();
+        h.prepare(&blocks, &pairs);
+        assert!(h.height.iter().any(|&height| height >= 30), "heights {:?}", h.height);
+        h.reset();
+        let mut dense = nalgebra::DMatrix::<f64>::identity(nv, nv);
+        for g in 0..12 {
+            // Three rows over every third column from an offset: every block pair coupled.
+            let columns: Vec<usize> = (g % 3..nv).step_by(3).collect();
+            add_rank(&mut h, &mut dense, &columns, 0.17 + 0.09 * g as f64, 3);
+        }
+        check_against_dense(&mut h, &dense);
     }
 
     /// A matrix that is not positive definite (a NaN on the diagonal) is refused.
