@@ -597,6 +597,17 @@ mod tests {
         }
     }
 
+    /// Blocks of the given widths side by side from column 0, and the columns they cover.
+    fn consecutive_blocks(widths: &[usize]) -> (Vec<(usize, usize)>, usize) {
+        let mut blocks = Vec::new();
+        let mut col = 0;
+        for &w in widths {
+            blocks.push((col, w));
+            col += w;
+        }
+        (blocks, col)
+    }
+
     /// Checks that `h` (assembled like `dense`) multiplies and solves as the dense matrix.
     fn check_against_dense(h: &mut Hessian, dense: &nalgebra::DMatrix<f64>) {
         let n = dense.nrows();
@@ -635,14 +646,7 @@ mod tests {
     /// fill analysis to be right; it is refactored after new values (the same pattern).
     #[test]
     fn a_ring_of_coupled_blocks_with_fill_solves_the_dense_matrix() {
-        let widths = [3, 1, 4, 2, 6, 3];
-        let mut blocks = Vec::new();
-        let mut col = 0;
-        for w in widths {
-            blocks.push((col, w));
-            col += w;
-        }
-        let nv = col;
+        let (blocks, nv) = consecutive_blocks(&[3, 1, 4, 2, 6, 3]);
         let mut pairs: Vec<(usize, usize)> =
             (0..6).map(|b| (b.min((b + 1) % 6), b.max((b + 1) % 6))).collect();
         pairs.push((0, 3));
@@ -698,15 +702,8 @@ mod tests {
     /// rows high, not multiples of a tile, so their updates take several register tiles and
     /// padded ones, and the factor still solves the dense matrix.
     #[test]
-    fn tall_panels_factor_through_whole_tiles_and_tails() {
-        let widths = [9, 13, 6, 11, 7];
-        let mut blocks = Vec::new();
-        let mut col = 0;
-        for w in widths {
-            blocks.push((col, w));
-            col += w;
-        }
-        let nv = col;
+    fn tall_panels_factor_through_whole_and_padded_tiles() {
+        let (blocks, nv) = consecutive_blocks(&[9, 13, 6, 11, 7]);
         let pairs: Vec<(usize, usize)> = (0..5).flat_map(|a| (a + 1..5).map(move |b| (a, b))).collect();
         let mut h = Hessian::default();
         h.prepare(&blocks, &pairs);
