@@ -384,7 +384,7 @@ impl Hessian {
             if update.len() < ld * ld {
                 update.resize(ld * ld, 0.0);
             }
-            lower_gram(packed, ld, width, &mut update[..ld * ld]);
+            lower_gram(packed, ld, width, below_rows, &mut update[..ld * ld]);
             let base = start + h * width;
             for (p, &(r1, o1)) in entries.iter().enumerate() {
                 let w1 = blocks[r1].1;
@@ -471,15 +471,18 @@ const TILE_ROWS: usize = 8;
 /// registers hold.
 const TILE_COLS: usize = 4;
 
-/// `update` (`ld` × `ld`, column-major) ← the lower triangle of B Bᵀ, B = `packed` (`ld` rows,
-/// a multiple of [`TILE_ROWS`], and `width` columns, column-major, zero below its own rows).
-/// Tiles of [`TILE_ROWS`] × [`TILE_COLS`] entries accumulate over all `width` columns in
-/// registers and are stored once (a rank-one pass per column would load and store the whole
-/// triangle `width` times); the tiles on the diagonal also write a few entries above it,
-/// which nothing reads.
-fn lower_gram(packed: &[f64], ld: usize, width: usize, update: &mut [f64]) {
-    for j in (0..ld).step_by(TILE_COLS) {
-        for i in (j - j % TILE_ROWS..ld).step_by(TILE_ROWS) {
+/// `update` (`ld` × `ld`, column-major) ← the lower triangle of B Bᵀ in its first `rows`
+/// columns, B = `packed` (`ld` rows, a multiple of [`TILE_ROWS`] and at least `rows`, and
+/// `width` columns, column-major, zero below its first `rows` rows). Tiles of [`TILE_ROWS`] ×
+/// [`TILE_COLS`] entries accumulate over all `width` columns in registers and are stored once
+/// (a rank-one pass per column would load and store the whole triangle `width` times); the
+/// tiles on the diagonal and at the ends also write a few entries above the diagonal or in the
+/// padding, which nothing reads.
+fn lower_gram(packed: &[f64], ld: usize, width: usize, rows: usize, update: &mut [f64]) {
+    // Tiles start below `rows` at multiples of their size, which divides `ld`: each lies
+    // within `ld`.
+    for j in (0..rows).step_by(TILE_COLS) {
+        for i in (j - j % TILE_ROWS..rows).step_by(TILE_ROWS) {
             let mut acc = [[0.0; TILE_ROWS]; TILE_COLS];
             for column in packed.chunks_exact(ld).take(width) {
                 let a: &[f64; TILE_ROWS] = column[i..i + TILE_ROWS].try_into().expect("a whole tile");
