@@ -224,6 +224,10 @@ pub struct RunSummary {
     /// Steps whose accepted answer's certifying residual is above the chain's tolerance (the
     /// last solver's answer accepted, [`crate::world::WorldOptions::accept_last`]).
     pub steps_above_tolerance: u64,
+    /// Simulated time (s) from which every multibody was asleep to the end of the run; `None`
+    /// when one was awake after the last step (always so with sleeping off, or with a
+    /// kinematic body, which never sleeps).
+    pub asleep_from: Option<f64>,
     /// Most islands of one step's problem.
     pub max_islands: usize,
     /// Most rows of one island.
@@ -362,6 +366,11 @@ pub fn run(
             }
             iterations += stats.iterations as u64;
         }
+        summary.asleep_from = if stats.asleep == scene.world.multibody_count() {
+            summary.asleep_from.or(Some(scene.world.time()))
+        } else {
+            None
+        };
         if every > 0 && (step % every == 0 || step == steps) {
             record_row(scene, step, &mut recording, frames.as_mut())?;
         }

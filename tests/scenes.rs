@@ -463,6 +463,22 @@ fn runs_record_every_k_steps_as_csv_and_json() {
     assert!(scene::run(&mut s, &options, |_| {}).unwrap().recording.rows.is_empty());
 }
 
+/// The summary says from when the whole scene slept: the ragdoll falls, lands and sleeps well
+/// within 5 s, and no step after that has rows; half a second in, it is still falling.
+#[test]
+fn a_run_reports_when_the_scene_fell_asleep() {
+    let mut s = scene::load_file(models_dir().join("ragdoll_fall.toml")).unwrap();
+    let options = RunOptions { duration: Some(0.5), record_every: Some(0), ..RunOptions::default() };
+    assert_eq!(scene::run(&mut s, &options, |_| {}).unwrap().asleep_from, None);
+    let options = RunOptions { duration: Some(5.0), ..options };
+    let summary = scene::run(&mut s, &options, |_| {}).unwrap();
+    let end = s.world.time();
+    let asleep = summary.asleep_from.expect("asleep at the end");
+    assert!(asleep > 0.5 && asleep < end - 1.0, "asleep from {asleep} s of {end} s");
+    let quiet_steps = ((end - asleep) / summary.dt).round() as u64;
+    assert!(summary.solved_steps + quiet_steps <= summary.steps, "{summary:?}");
+}
+
 #[test]
 fn run_options_override_dt_and_solver_before_the_first_step() {
     let mut s = scene::load_file(models_dir().join("ball_bounce.toml")).unwrap();

@@ -131,6 +131,10 @@ pub fn simulate(args: &SimulateArgs) -> Result<(), String> {
             summary.mean_iterations
         );
         println!("islands: up to {} in a step, largest {} rows", summary.max_islands, summary.largest_island);
+        match summary.asleep_from {
+            Some(t) => println!("asleep from {t:.3} s to the end"),
+            None => println!("awake at the end"),
+        }
         let per_step = 1e6 / summary.steps.max(1) as f64;
         let phases: Vec<String> = gelenk::world::PHASE_NAMES
             .iter()
