@@ -590,7 +590,7 @@ impl World {
         timer.lap(Phase::FreeMotion);
         let solve = self.rows_and_problem(h, has_rows && !smooth);
         timer.lap(Phase::Rows);
-        let report = if solve { Some(self.solve_problem(false)?) } else { None };
+        let report = if solve { Some(self.solve_problem()?) } else { None };
         let report = self.speculation_passes(h, report)?;
         timer.lap(Phase::Solve);
         self.midpoint_shifts(h, smooth);
@@ -771,11 +771,11 @@ impl World {
     }
 
     /// Stage 6: the impulses of the built problem and the velocity after them (see
-    /// [`Solve::solve`]); `resolve`: a speculation pass solving the step's problem again.
-    fn solve_problem(&mut self, resolve: bool) -> Result<ChainReport, StepError> {
+    /// [`Solve::solve`]).
+    fn solve_problem(&mut self) -> Result<ChainReport, StepError> {
         let generation = self.rows.kept_contact_rows().map(|(generation, _)| generation);
         let softening = Softening { relative: self.options.softness, damping: self.options.softness_damping };
-        Ok(self.solve.solve(&self.contacts, generation, softening, resolve, &self.bodies, &mut self.dofs)?)
+        Ok(self.solve.solve(&self.contacts, generation, softening, &self.bodies, &mut self.dofs)?)
     }
 
     /// Moves every collider to the current states (poses, Jacobians), as a step's first phase

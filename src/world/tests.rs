@@ -220,45 +220,11 @@ fn a_contact_whose_feature_id_changed_keeps_its_impulses_and_one_that_moved_does
     assert!(rows_of(3).iter().all(|&r| w.solve.lambda[r] == 0.0), "{}", w.solve.lambda);
 }
 
-/// Soft rows: a step's solve moves each row's spring to the elastic part of its impulse, and
-/// the next step is centred there; a re-solve of the same step (a speculation pass) is centred
-/// where the step's first solve was, so that the step moves the springs once.
-#[test]
-fn a_resolve_is_centred_where_the_step_was_and_the_next_step_where_it_moved() {
-    let mut w = resting_box();
-    // Softened from this step on: the step is centred at 0 and moves the springs to (1 − β) λ.
-    w.set_softness(0.1);
-    w.step().unwrap();
-    let beta = w.options.softness_damping;
-    let lambda = w.solve.lambda.clone();
-    assert!(lambda.iter().any(|l| *l > 0.0), "{lambda}");
-    let elastic = lambda.map(|l| (1.0 - beta) * l);
-    let centre_of = |w: &mut World, resolve: bool| {
-        let generation = w.rows.kept_contact_rows().map(|(generation, _)| generation);
-        let (solve, mut l, mut centre) = (&mut w.solve, lambda.clone(), elastic.clone());
-        solve.warm.start(&solve.problem, &w.contacts, generation, &mut l, Some(&mut centre), resolve);
-        assert_eq!(l, lambda);
-        centre
-    };
-    // As the same rows (λ and the centre stand), then by the rows' keys.
-    for keyed in [false, true] {
-        if keyed {
-            w.rows.kept.invalidate();
-        }
-        let next_step = centre_of(&mut w, false);
-        assert_eq!(w.solve.warm.same_rows, !keyed);
-        for (c, l) in next_step.iter().zip(&lambda) {
-            assert!((c - (1.0 - beta) * l).abs() <= 1e-15 * l.abs(), "{c} against λ {l}");
-        }
-        assert_eq!(centre_of(&mut w, true), DVector::zeros(lambda.len()), "keyed {keyed}");
-    }
-}
-
 /// The world's warm start of its last problem's rows, as a step does it before the solve.
 fn warm_start(w: &mut World) {
     let generation = w.rows.kept_contact_rows().map(|(generation, _)| generation);
     let solve = &mut w.solve;
-    solve.warm.start(&solve.problem, &w.contacts, generation, &mut solve.lambda, None, false);
+    solve.warm.start(&solve.problem, &w.contacts, generation, &mut solve.lambda, None);
 }
 
 /// Options out of range stop the step before anything changes, naming the option: a softness

@@ -35,10 +35,6 @@ pub(crate) struct WarmStart {
     values: Vec<f64>,
     /// Last step's elastic impulses of softened rows, in row order (empty without softness).
     centres: Vec<f64>,
-    /// The elastic impulses the last solve was centred on, in its row order: a re-solve within
-    /// the same step (a speculation pass) is centred on them again, so that the step moves each
-    /// row's spring once however often it is solved.
-    step_centres: Vec<f64>,
     /// The origins of last solve's rows and the generation of its kept contact rows (see
     /// `contact_rows`), and whether this step's rows are those rows.
     origins: Vec<RowOrigin>,
@@ -57,15 +53,6 @@ pub(crate) struct WarmStart {
     missed: Vec<usize>,
 }
 
-/// The centres of a softened solve's rows, in row order (N·s).
-#[derive(Clone, Copy)]
-pub(crate) struct SoftCentres<'a> {
-    /// The elastic part of each row's impulse, that the next step is centred on.
-    pub(crate) elastic: &'a DVector<f64>,
-    /// What the solve was centred on.
-    pub(crate) centred_on: &'a DVector<f64>,
-}
-
 /// A contact of the last step with rows, for the warm start's second pass.
 #[derive(Clone, Copy, Debug)]
 struct WarmContact {
@@ -81,9 +68,7 @@ impl WarmStart {
     /// Writes into `lambda` the warm start of `problem`'s rows (see the module documentation),
     /// and into `centre`, when given, their elastic impulses of the last step (0 for a row that
     /// had none). `contacts`: the step's contacts, which the problem's contact rows name;
-    /// `generation`: that of the kept contact rows the rows start with. `resolve`: the step's
-    /// problem solved again (a speculation pass): λ starts from the last solve's impulses and the
-    /// centre is the one that solve was centred on, not the one it moved on to.
+    /// `generation`: that of the kept contact rows the rows start with.
     pub(crate) fn start(
         &mut self,
         problem: &ConstraintProblem,
@@ -91,7 +76,6 @@ impl WarmStart {
         generation: Option<u64>,
         lambda: &mut DVector<f64>,
         mut centre: Option<&mut DVector<f64>>,
-        resolve: bool,
     ) {
         let n = problem.rows();
         let centres_kept = self.centres.len() == n && centre.as_ref().is_some_and(|c| c.len() == n);
@@ -104,9 +88,6 @@ impl WarmStart {
             && (centre.is_none() || centres_kept)
             && problem.origins == self.origins;
         if self.same_rows {
-            if let (true, Some(c)) = (resolve, centre) {
-                c.as_mut_slice().copy_from_slice(&self.step_centres);
-            }
             return;
         }
         if lambda.len() != n {
@@ -117,8 +98,7 @@ impl WarmStart {
                 *c = DVector::zeros(n);
             }
         }
-        let kept = if resolve { &self.step_centres } else { &self.centres };
-        let centres = (kept.len() == self.values.len()).then_some(kept.as_slice());
+        let centres = (self.centres.len() == self.values.len()).then_some(self.centres.as_slice());
         let mut counter = (0, u64::MAX);
         self.row_keys.clear();
         self.row_keys.extend((0..n).map(|i| row_key(problem, contacts, i, &mut counter)));
@@ -155,7 +135,7 @@ impl WarmStart {
             }
         }
         if !self.missed.is_empty() {
-            self.match_moved_contacts(problem, contacts, lambda, centre, resolve);
+            self.match_moved_contacts(problem, contacts, lambda, centre);
         }
     }
 
@@ -167,10 +147,8 @@ impl WarmStart {
         contacts: &[Contact],
         lambda: &mut DVector<f64>,
         mut centre: Option<&mut DVector<f64>>,
-        resolve: bool,
     ) {
-        let kept = if resolve { &self.step_centres } else { &self.centres };
-        let centres = (kept.len() == self.values.len()).then_some(kept.as_slice());
+        let centres = (self.centres.len() == self.values.len()).then_some(self.centres.as_slice());
         // Last step's contacts that a key matched (by their first row) are taken.
         self.taken.clear();
         self.taken.resize(self.contacts.len(), false);
@@ -216,24 +194,21 @@ impl WarmStart {
         }
     }
 
-    /// Keeps this step's impulses `lambda` of `problem`'s rows, and when the rows are softened
-    /// `centres`: their elastic parts and the centres the solve was centred on, with their keys
-    /// for the next step's warm start (and a re-solve's).
+    /// Keeps this step's impulses `lambda` of `problem`'s rows, and their elastic parts
+    /// `centre` when the rows are softened, with their keys for the next step's warm start.
     pub(crate) fn remember(
         &mut self,
         problem: &ConstraintProblem,
         contacts: &[Contact],
         generation: Option<u64>,
         lambda: &DVector<f64>,
-        centres: Option<SoftCentres>,
+        centre: Option<&DVector<f64>>,
     ) {
         self.values.clear();
         self.values.extend_from_slice(lambda.as_slice());
         self.centres.clear();
-        self.step_centres.clear();
-        if let Some(c) = centres {
-            self.centres.extend_from_slice(c.elastic.as_slice());
-            self.step_centres.extend_from_slice(c.centred_on.as_slice());
+        if let Some(c) = centre {
+            self.centres.extend_from_slice(c.as_slice());
         }
         self.generation = generation;
         if self.same_rows {

@@ -15,7 +15,7 @@ use crate::error::SolverError;
 use crate::solvers::{ChainReport, SolverChain};
 use crate::world::dofs::{block_factors, StackedDofs};
 use crate::world::stages::islands::IslandSolves;
-use crate::world::warm_start::{SoftCentres, WarmStart};
+use crate::world::warm_start::WarmStart;
 use crate::world::{Multibody, WorldOptions};
 use nalgebra::DVector;
 
@@ -43,8 +43,6 @@ pub(crate) struct Solve {
     /// The elastic part of each softened row's impulse (N·s) that the softening is centred on
     /// ([`ConstraintProblem::follow_elastic_impulses`]); unused while the rows are hard.
     centre: DVector<f64>,
-    /// The centres the last solve was centred on, before its answer moved them.
-    centred_on: DVector<f64>,
     /// The rows `problem`'s W was built from, and per multibody the factor it was built on
     /// ([`Multibody::factor_identity`]): a step whose rows and factors are the same keeps W.
     built_rows: BuiltRows,
@@ -70,7 +68,6 @@ impl Solve {
             builds: 0,
             lambda: DVector::zeros(0),
             centre: DVector::zeros(0),
-            centred_on: DVector::zeros(0),
             warm: WarmStart::default(),
         }
     }
@@ -132,34 +129,26 @@ impl Solve {
     /// `generation`: that of the contact rows the builder starts with. `softening`: that the
     /// problem was softened by, centred here on the elastic part of the last step's impulses
     /// ([`ConstraintProblem::center_softening`]), which the answer then moves
-    /// ([`ConstraintProblem::follow_elastic_impulses`]). `resolve`: the step's problem again,
-    /// with more rows (a speculation pass): warm-started from the last solve and centred where
-    /// that solve was, so that its islands left as they were start at their answer.
+    /// ([`ConstraintProblem::follow_elastic_impulses`]).
     pub(crate) fn solve(
         &mut self,
         contacts: &[Contact],
         generation: Option<u64>,
         softening: Softening,
-        resolve: bool,
         bodies: &[Multibody],
         dofs: &mut StackedDofs,
     ) -> Result<ChainReport, SolverError> {
         let soft = softening.relative > 0.0;
         let centre = soft.then_some(&mut self.centre);
-        self.warm.start(&self.problem, contacts, generation, &mut self.lambda, centre, resolve);
+        self.warm.start(&self.problem, contacts, generation, &mut self.lambda, centre);
         if soft {
             self.problem.center_softening(softening.relative, &self.centre);
-            if self.centred_on.len() != self.centre.len() {
-                self.centred_on = DVector::zeros(self.centre.len());
-            }
-            self.centred_on.copy_from(&self.centre);
         }
         let report = self.islands.solve(&self.problem, &mut self.lambda, &self.chain)?;
         if soft {
             self.problem.follow_elastic_impulses(softening.damping, &self.lambda, &mut self.centre);
         }
-        let centres = soft.then_some(SoftCentres { elastic: &self.centre, centred_on: &self.centred_on });
-        self.warm.remember(&self.problem, contacts, generation, &self.lambda, centres);
+        self.warm.remember(&self.problem, contacts, generation, &self.lambda, soft.then_some(&self.centre));
         dofs.apply_impulses(&self.problem, &self.lambda, bodies);
         Ok(report)
     }

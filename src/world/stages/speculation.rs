@@ -2,9 +2,7 @@
 //! approach fast enough to close the gap within the step ([`Speculation::keeps`]); one that the
 //! test left out may yet be closed by the impulses of the other rows (a resting hand flicked
 //! down by a body landing on its arm): then it gets rows and the problem is solved again,
-//! warm-started from this solve and, for soft rows, centred where this solve was (islands the
-//! new rows leave as they were start at their answer). Joint-limit stops are judged the same
-//! way.
+//! warm-started from this solve. Joint-limit stops are judged the same way.
 
 use crate::collision::{Attachment, Contact};
 use crate::constraints::{DroppedLimit, Speculation};
@@ -154,7 +152,7 @@ impl World {
             }
             self.assemble_rows(h, true);
             self.build_problem();
-            let again = self.solve_problem(true)?;
+            let again = self.solve_problem()?;
             report = Some(match report {
                 Some(mut first) => {
                     first.fallbacks.extend(again.fallbacks);
