@@ -7,6 +7,8 @@ written in place (between its `crowds:begin` and `crowds:end` markers; nothing e
    with an MJCF world's own options (hard rows, the default chain), at dt = 1/60, 1/240 and
    1/500 s: steps above the chain's tolerance, the largest certified residual, the deepest
    penetration, islands, and the CPU time per step.
+   The pile scenes again for 10 s with sleeping on, as they ship: from when every multibody slept
+   (`asleep_from` of `gelenk simulate --json`).
 2. Against MuJoCo in the same run: piles of N = 4, 16, 64 ragdolls written as MJCF by
    benches/ragdoll_mjcf.py, stepped by `gelenk bench world FILE.xml --json` (sleeping off, every
    step does the full work) and by MuJoCo (`mj_step`, the same file, the same steps from the same
@@ -33,6 +35,8 @@ ROOT = os.path.join(HERE, "..")
 DOC = os.path.join(ROOT, "docs", "performance.md")
 BEGIN, END = "<!-- crowds:begin -->", "<!-- crowds:end -->"
 DTS = [("1/60", 1 / 60), ("1/240", 1 / 240), ("1/500", 1 / 500)]
+# Simulated seconds of the sleep runs (the bound: asleep within 10 s).
+SLEEP_SECONDS = 10.0
 # The chain and softness of the MJCF piles (which carry no gelenk settings: the world's default
 # rows are hard, MuJoCo's soft): the ragdoll crowd's chain, with the softness of MuJoCo's default
 # impedance (d = 0.9 gives R = (1 - d) / d · A = 0.11 A), so that both engines solve rows of
@@ -163,6 +167,27 @@ def main():
         "MJCF piles: `python3 benches/ragdoll_mjcf.py --count N --dt DT --cone elliptic`, stepped by "
         "`gelenk bench world FILE.xml` with the file's own world (hard rows, the default chain; sleeping "
         "off, so that every step does the full work).",
+        "",
+        "### Crowds: asleep within 10 s (sleeping on, as the scenes ship)",
+        "",
+        f"`gelenk simulate SCENE --dt DT --duration {SLEEP_SECONDS:g} --json`: `asleep_from`, the simulated time from "
+        f"which every multibody slept to the end of the run (\"awake\" when one was still awake at {SLEEP_SECONDS:g} s).",
+        "",
+        "| scene | dt | asleep from (s) | steps with rows | deepest penetration (mm) | above tolerance "
+        "| CPU s for the run |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for scene, flags in SCENES:
+        for label, dt in dts:
+            s = simulate(args.gelenk, scene, dt, SLEEP_SECONDS, flags)
+            asleep = "awake" if s["asleep_from"] is None else f"{s['asleep_from']:.2f}"
+            lines.append(
+                f"| {scene} | {label} | {asleep} | {s['solved_steps']} of {s['steps']} "
+                f"| {1e3 * s['max_penetration']:.1f} | {s['steps_above_tolerance']} "
+                f"| {s['cpu_per_step'] * s['steps']:.1f} |"
+            )
+            print(lines[-1], flush=True)
+    lines += [
         "",
         "### Crowds against MuJoCo (the same MJCF file, the same run)",
         "",
