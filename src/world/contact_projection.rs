@@ -107,7 +107,7 @@ pub struct ContactProjection {
 
 impl Default for ContactProjection {
     fn default() -> Self {
-        Self { enabled: true, slop: 5e-4, trigger: 7.5e-4, rounds: 4, sweeps: 20, tolerance: 1e-5 }
+        Self { enabled: true, slop: 5e-4, trigger: 7.5e-4, rounds: 3, sweeps: 20, tolerance: 1e-5 }
     }
 }
 
